@@ -1,0 +1,31 @@
+# Two commands do all set-up: `make demo` runs every experiment, `make test` runs the tests.
+PYTHON ?= python3
+VENV := .venv
+BIN := $(VENV)/bin
+STAMP := $(VENV)/.installed
+
+.PHONY: demo test lint bench clean
+
+$(BIN)/python:
+	$(PYTHON) -m venv $(VENV)
+	$(BIN)/python -m pip install --quiet --upgrade pip
+
+$(STAMP): $(BIN)/python pyproject.toml
+	$(BIN)/python -m pip install --quiet -e ".[test]"
+	touch $(STAMP)
+
+demo: $(STAMP)
+	$(BIN)/workbench demo --force
+
+test: $(STAMP)
+	$(BIN)/python -m ruff check workbench tests benchmarks
+	$(BIN)/python -m pytest -q
+
+lint: $(STAMP)
+	$(BIN)/python -m ruff check workbench tests benchmarks
+
+bench: $(STAMP)
+	$(BIN)/python benchmarks/bench_sea.py
+
+clean:
+	rm -rf $(VENV) recordings/*.rrd

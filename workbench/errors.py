@@ -1,0 +1,11 @@
+"""The one exception the command line turns into a one-line message and exit code 2."""
+
+
+class WorkbenchError(Exception):
+    """Bad input or an environment problem the user can fix; never a bug."""
+
+
+def require(condition: bool, message: str) -> None:
+    """Raise :class:`WorkbenchError` with ``message`` unless ``condition`` holds."""
+    if not condition:
+        raise WorkbenchError(message)

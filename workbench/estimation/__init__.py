@@ -1,0 +1,1 @@
+"""Estimation maths no single experiment owns: angles, Kalman helpers, diffuse RLS, metrics."""

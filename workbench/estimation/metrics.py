@@ -1,0 +1,61 @@
+"""Error metrics: bias, RMSE, maximum, NEES/NIS and their chi-square bounds.
+
+Conventions: an error is ``truth - estimate`` (the sea paper's ``e = x - x_hat``). Steps where
+an estimator has no estimate are NaN and are left out of its time averages.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import stats
+
+
+def bias(err: np.ndarray, axis: int = -1) -> np.ndarray:
+    """Time-averaged error, NaNs ignored."""
+    return np.nanmean(err, axis=axis)
+
+
+def rmse(err: np.ndarray, axis: int = -1) -> np.ndarray:
+    """Root mean square error, NaNs ignored."""
+    return np.sqrt(np.nanmean(np.square(err), axis=axis))
+
+
+def max_abs(err: np.ndarray, axis: int = -1) -> np.ndarray:
+    """Largest absolute error, NaNs ignored."""
+    return np.nanmax(np.abs(err), axis=axis)
+
+
+def nees(err: np.ndarray, cov: np.ndarray) -> np.ndarray:
+    """Normalised estimation error squared ``e' P^-1 e`` for stacked ``err (..., n)``, ``cov (..., n, n)``."""
+    sol = np.linalg.solve(cov, err[..., None])[..., 0]
+    return np.einsum("...i,...i->...", err, sol)
+
+
+def chi2_band(dof: int, runs: int, confidence: float = 0.95) -> tuple[float, float]:
+    """Two-sided band for an average of ``runs`` NEES (or NIS) values of ``dof`` dimensions.
+
+    ``runs * mean`` is chi-square with ``runs * dof`` degrees of freedom (Bar-Shalom 5.4.2).
+    """
+    alpha = 1.0 - confidence
+    total = dof * runs
+    lo = stats.chi2.ppf(alpha / 2.0, total) / runs
+    hi = stats.chi2.ppf(1.0 - alpha / 2.0, total) / runs
+    return float(lo), float(hi)
+
+
+@dataclass(frozen=True)
+class Spread:
+    """A statistic over Monte Carlo runs: its mean and standard deviation."""
+
+    mean: float
+    std: float
+
+    @classmethod
+    def of(cls, values: np.ndarray) -> Spread:
+        values = np.asarray(values, dtype=float)
+        values = values[np.isfinite(values)]
+        if values.size == 0:
+            return cls(float("nan"), float("nan"))
+        return cls(float(values.mean()), float(values.std(ddof=1)) if values.size > 1 else 0.0)

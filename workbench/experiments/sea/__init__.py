@@ -1,0 +1,1 @@
+"""Experiment ``sea``: object position on the sea surface from a monocular camera (seed 002)."""

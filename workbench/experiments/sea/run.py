@@ -1,0 +1,246 @@
+"""Configure -> simulate or load -> estimate (every estimator, same data) -> evaluate.
+
+One run gives a :class:`RunResult`; Monte Carlo runs go over processes and are reduced to
+the statistics of Table 2 (time averages per run, then mean and spread over runs).
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from collections.abc import Callable
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from workbench.estimation import metrics
+from workbench.estimation.angles import to_arcmin, wrap
+from workbench.experiments.sea import ais, ar_filter, ekf, geometric, smoother
+from workbench.experiments.sea.config import SeaConfig
+from workbench.experiments.sea.estimate import Estimate
+from workbench.experiments.sea.paper import TABLE2
+from workbench.experiments.sea.scenario import SeaData, simulate
+
+QUANTITIES = ("x", "y", "alpha", "beta", "range")
+
+
+@dataclass
+class RunResult:
+    """One run: its data, every estimate, and per-estimator error series ``(T, 5)``."""
+
+    data: SeaData
+    estimates: dict[str, Estimate]
+    errors: dict[str, np.ndarray] = field(default_factory=dict)
+
+
+def make_data(cfg: SeaConfig, run: int, ship: dict | None = None) -> SeaData:
+    """The run's dataset, seeded by ``(seed, run)`` so runs are independent and repeatable."""
+    rng = np.random.default_rng([cfg.seed, run])
+    if cfg.scenario == "ais":
+        ship = ship or ais.ship_scenario(cfg.data, cfg.mmsi, cfg.duration, cfg.dt, cfg.ais_range)
+        return simulate(cfg, rng, target=ship["target"], observer=ship["observer"],
+                        course=ship["course"], label=ship["label"])
+    return simulate(cfg, rng)
+
+
+def run_estimators(data: SeaData, cfg: SeaConfig, covariances: bool = False) -> dict[str, Estimate]:
+    """Every selected estimator on the same data, each timed."""
+    shared: dict[str, smoother.FactorSet] = {}
+
+    def factors() -> smoother.FactorSet:
+        if "set" not in shared:
+            shared["set"] = smoother.FactorSet(data, cfg)
+        return shared["set"]
+
+    runners: dict[str, Callable[[], Estimate]] = {
+        "geometric": lambda: geometric.estimate(data),
+        "rls": lambda: ar_filter.estimate(data, cfg, windowed=False),
+        "window-rls": lambda: ar_filter.estimate(data, cfg, windowed=True),
+        "ekf": lambda: ekf.estimate(data, cfg),
+        "gtsam": lambda: smoother.batch(data, cfg, covariances, factors()),
+        "isam2": lambda: smoother.incremental(data, cfg, covariances, factors()),
+    }
+    out = {}
+    for name in cfg.estimators:
+        t0 = time.perf_counter()
+        est = runners[name]()
+        est.seconds = time.perf_counter() - t0
+        out[name] = est
+    return out
+
+
+def errors(data: SeaData, est: Estimate) -> np.ndarray:
+    """Errors ``truth - estimate`` per step: x, y (m), alpha, beta (rad), range (m)."""
+    return np.stack([
+        data.target[:, 0] - est.position[:, 0],
+        data.target[:, 1] - est.position[:, 1],
+        wrap(data.alpha - est.alpha),
+        data.beta - est.beta,
+        data.range - est.range,
+    ], axis=1)
+
+
+def run_once(cfg: SeaConfig, run: int, covariances: bool = False,
+             ship: dict | None = None) -> RunResult:
+    data = make_data(cfg, run, ship)
+    est = run_estimators(data, cfg, covariances)
+    return RunResult(data, est, {name: errors(data, e) for name, e in est.items()})
+
+
+@dataclass
+class RunSummary:
+    """What a Monte Carlo worker sends back: small arrays, no GTSAM objects."""
+
+    run: int
+    errors: dict[str, np.ndarray]
+    nees: dict[str, np.ndarray]
+    forecast_err: dict[str, np.ndarray]
+    seconds: dict[str, float]
+    disturbed: np.ndarray
+    t: np.ndarray
+    transient: dict[str, np.ndarray] = field(default_factory=dict)
+
+
+def summarise(result: RunResult, cfg: SeaConfig, run: int) -> RunSummary:
+    data = result.data
+    nees, fc = {}, {}
+    truth = data.target
+    for name, est in result.estimates.items():
+        if est.state_cov is not None:
+            e = truth - np.concatenate([est.position, est.velocity], axis=1)
+            ok = np.all(np.isfinite(e), axis=1)
+            n = np.full(data.steps, np.nan)
+            n[ok] = metrics.nees(e[ok], est.state_cov[ok])
+            nees[name] = n
+        if est.forecast is not None:
+            L = est.forecast.shape[1]
+            f = np.full((data.steps, 2), np.nan)
+            f[: data.steps - L] = truth[L:, :2] - est.forecast[: data.steps - L, L - 1]
+            fc[name] = f
+    transient = {}
+    if cfg.scenario == "impulse":
+        transient = impulse_transient(result, cfg, run)
+    return RunSummary(run, result.errors, nees, fc,
+                      {n: e.seconds for n, e in result.estimates.items()}, data.disturbed, data.t,
+                      transient)
+
+
+TRANSIENT_SKIP = ("isam2",)
+"""Estimators left out of the impulse transient (it reruns each one on the undisturbed data)."""
+
+
+def impulse_transient(result: RunResult, cfg: SeaConfig, run: int) -> dict[str, np.ndarray]:
+    """Azimuth error caused by the impulse alone: the run minus the same run without it.
+
+    ``simulate`` draws the impulse after every other noise, so the ``paper`` scenario with
+    the same seed and run is the identical run, undisturbed; the difference of the two
+    errors is the transient, free of the ordinary noise.
+    """
+    clean_cfg = replace(cfg, scenario="paper",
+                        estimators=tuple(e for e in cfg.estimators if e not in TRANSIENT_SKIP))
+    clean = run_once(clean_cfg, run)
+    return {n: result.errors[n][:, 2] - clean.errors[n][:, 2] for n in clean.errors}
+
+
+def _worker(args: tuple[SeaConfig, int, dict | None]) -> RunSummary:
+    cfg, run, ship = args
+    return summarise(run_once(cfg, run, ship=ship), cfg, run)
+
+
+def monte_carlo(cfg: SeaConfig, first: RunResult | None = None, jobs: int | None = None,
+                progress: Callable[[int], None] | None = None) -> list[RunSummary]:
+    """Runs ``0 .. runs-1`` (run 0 may be given, already computed with covariances)."""
+    ship = None
+    if cfg.scenario == "ais":
+        ship = ais.ship_scenario(cfg.data, cfg.mmsi, cfg.duration, cfg.dt, cfg.ais_range)
+    out: list[RunSummary] = []
+    todo = list(range(cfg.runs))
+    if first is not None:
+        out.append(summarise(first, cfg, 0))
+        todo = todo[1:]
+        if progress:
+            progress(1)
+    jobs = jobs or min(2, os.cpu_count() or 1)
+    if len(todo) <= 2 or jobs == 1:
+        for r in todo:
+            out.append(_worker((cfg, r, ship)))
+            if progress:
+                progress(1)
+    else:
+        with ProcessPoolExecutor(max_workers=jobs) as pool:
+            for s in pool.map(_worker, [(cfg, r, ship) for r in todo], chunksize=2):
+                out.append(s)
+                if progress:
+                    progress(1)
+    return sorted(out, key=lambda s: s.run)
+
+
+def statistics(cfg: SeaConfig, runs: list[RunSummary], label: str = "") -> dict:
+    """Table 2's statistics per estimator (mean and spread over runs) as the metrics JSON."""
+    names = list(runs[0].errors)
+    T = len(runs[0].t)
+    result: dict = {"experiment": "sea", "scenario": cfg.scenario, "seed": cfg.seed,
+                    "runs": len(runs), "steps": T, "label": label, "config": cfg.to_json(),
+                    "units": {"x": "m", "y": "m", "range": "m", "alpha": "arcmin",
+                              "beta": "arcmin", "seconds": "s", "recovery": "s"},
+                    "paper_table2": TABLE2, "estimators": {}}
+    scale = np.array([1.0, 1.0, to_arcmin(1.0), to_arcmin(1.0), 1.0])
+    for name in names:
+        E = np.stack([r.errors[name] for r in runs]) * scale  # (runs, T, 5)
+        b = np.nanmean(E, axis=1)
+        rm = np.sqrt(np.nanmean(E**2, axis=1))
+        mx = np.nanmax(np.abs(E), axis=1)
+        entry: dict = {
+            "rmse": _named(rm.mean(axis=0)), "rmse_std": _named(rm.std(axis=0)),
+            "bias": _named(b.mean(axis=0)), "bias_std": _named(b.std(axis=0)),
+            "max": _named(mx.mean(axis=0)),
+            "position_rmse": float(np.sqrt(np.nanmean(E[..., 0] ** 2 + E[..., 1] ** 2))),
+            "coverage": float(np.mean(np.isfinite(E[..., 0]))),
+            "seconds": float(np.mean([r.seconds[name] for r in runs])),
+        }
+        if name in runs[0].transient:
+            D = np.stack([r.transient[name] for r in runs]) * scale[2]
+            entry["recovery"] = _recovery(cfg, runs[0].t, D, to_arcmin(cfg_sigma_alpha(cfg)))
+        if cfg.scenario == "track-loss":
+            lost = ~np.isfinite(np.stack([r.errors["geometric"][:, 0] for r in runs]))[0] \
+                if "geometric" in names else None
+            if lost is not None and lost.any() and np.isfinite(E[:, lost, 0]).any():
+                entry["rmse_during_loss"] = _named(np.sqrt(np.nanmean(E[:, lost] ** 2, axis=(0, 1))))
+        if name in runs[0].nees:
+            N = np.stack([r.nees[name] for r in runs])
+            per_step = np.nanmean(N, axis=0)
+            lo, hi = metrics.chi2_band(4, len(runs))
+            entry["anees"] = float(np.nanmean(per_step))
+            entry["anees_band"] = [lo, hi]
+            entry["nees_inside_band"] = float(np.nanmean((per_step >= lo) & (per_step <= hi)))
+        if name in runs[0].forecast_err:
+            F = np.stack([r.forecast_err[name] for r in runs])
+            entry["forecast_rmse"] = {"x": float(np.sqrt(np.nanmean(F[..., 0] ** 2))),
+                                      "y": float(np.sqrt(np.nanmean(F[..., 1] ** 2))),
+                                      "steps": cfg.horizon}
+        result["estimators"][name] = entry
+    return result
+
+
+def _named(v: np.ndarray) -> dict[str, float]:
+    return {q: float(x) for q, x in zip(QUANTITIES, v, strict=True)}
+
+
+def cfg_sigma_alpha(cfg: SeaConfig) -> float:
+    return float(np.deg2rad(cfg.sigma_alpha_arcmin / 60.0))
+
+
+def _recovery(cfg: SeaConfig, t: np.ndarray, transient: np.ndarray, level: float) -> dict:
+    """How long after the impulse the azimuth transient stays above the camera's noise.
+
+    ``transient`` (runs, T) is the impulse's own effect on the azimuth error (arcmin);
+    recovery is the last time its RMS over runs exceeds ``level`` (sigma_alpha), minus the
+    impulse's end; ``settled`` is False if it still exceeds it at the end of the run.
+    """
+    rms = np.sqrt(np.nanmean(transient**2, axis=0))
+    over = np.flatnonzero((t >= cfg.impulse_start) & (rms > level))
+    last = t[over[-1]] if over.size else cfg.impulse_end
+    return {"seconds": float(max(0.0, last - cfg.impulse_end)), "level_arcmin": level,
+            "settled": not bool(over.size and over[-1] == len(t) - 1),
+            "peak_arcmin": float(np.nanmax(rms))}
