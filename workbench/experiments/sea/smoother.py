@@ -159,7 +159,7 @@ def batch(data: SeaData, cfg: SeaConfig, covariances: bool = False,
     Vel = np.array([result.atPoint3(V(k))[:2] for k in range(T)])
     cov = None
     if covariances:
-        marg = gtsam.Marginals(graph, result, gtsam.Marginals.Factorization.QR)
+        marg = gtsam.Marginals(graph, result)
         cov = np.array([marg.marginalCovariance(P(k))[:2, :2] for k in range(T)])
     est = from_positions("gtsam", data, X, velocity=Vel, covariance=cov, causal=False)
     est.seconds = time.perf_counter() - t0

@@ -1,0 +1,195 @@
+"""The ``workbench`` launcher: one command per experiment, plus list, demo and view."""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import subprocess
+import sys
+import time
+from collections.abc import Callable
+from functools import wraps
+from pathlib import Path
+
+import typer
+
+from workbench.errors import WorkbenchError
+from workbench.experiments import EXPERIMENTS
+from workbench.paths import PROJECT_ROOT
+
+app = typer.Typer(no_args_is_help=True, add_completion=False,
+                  help="Estimation workbench: paper estimators against GTSAM, recorded to Rerun.")
+
+RECORDINGS = PROJECT_ROOT / "recordings"
+
+
+def friendly(fn: Callable) -> Callable:
+    """Bad input becomes one line on stderr and exit code 2, never a traceback."""
+
+    @wraps(fn)
+    def wrapper(*args, **kwargs):
+        try:
+            return fn(*args, **kwargs)
+        except WorkbenchError as exc:
+            typer.echo(f"error: {exc}", err=True)
+            raise typer.Exit(2) from None
+        except KeyboardInterrupt:
+            typer.echo("interrupted", err=True)
+            raise typer.Exit(130) from None
+
+    return wrapper
+
+
+@app.command("list")
+def list_experiments() -> None:
+    """Name the experiments, one line each."""
+    for name, text in EXPERIMENTS.items():
+        typer.echo(f"{name:8s} {text}")
+
+
+def _progress(total: int, label: str):
+    """A progress bar (rich, which typer brings) that shows itself only past a second."""
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+
+    bar = Progress(TextColumn(label), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
+                   transient=True, disable=not sys.stderr.isatty())
+    return bar, bar.add_task(label, total=total)
+
+
+def run_sea(cfg, out: Path | None, force: bool, metrics_path: Path | None, spawn: bool,
+            serve: bool, jobs: int | None, quiet: bool = False) -> dict:
+    """Validate, check outputs, run, record; returns the metrics dict."""
+    from workbench.experiments.sea import record, report, run
+    from workbench.recording import stream
+
+    cfg.validate()
+    out = stream.check_output(out or RECORDINGS / "sea.rrd", force)
+    if metrics_path is not None:
+        metrics_path = stream.check_plain_output(metrics_path, force, "metrics file")
+    t0 = time.perf_counter()
+    bar, task = _progress(cfg.runs, f"sea {cfg.scenario}")
+    with bar:
+        first = run.run_once(cfg, 0, covariances=True)
+        runs = run.monte_carlo(cfg, first=first, jobs=jobs,
+                               progress=lambda n: bar.advance(task, n))
+    stats = run.statistics(cfg, runs, first.data.label)
+    stats["wall_seconds"] = time.perf_counter() - t0
+    table = report.table(stats)
+    with stream.recording(out, "sea", cfg.to_json(), cfg.seed,
+                          record.blueprint(list(first.estimates)), spawn=spawn, serve=serve) as rec:
+        record.record(rec, first, runs, table)
+    stats["recording"] = str(out)
+    if metrics_path is not None:
+        stream.write_text_atomic(metrics_path, json.dumps(stats, indent=2))
+    if not quiet:
+        typer.echo(table)
+        typer.echo(f"\nrecording: {out}" + (f"\nmetrics:   {metrics_path}" if metrics_path else "")
+                   + f"\n{cfg.runs} run(s) in {stats['wall_seconds']:.1f} s")
+    return stats
+
+
+@app.command()
+@friendly
+def sea(
+    scenario: str = typer.Option("paper", help="paper | impulse | track-loss | ais"),
+    seed: int = typer.Option(0, help="Seed of every random draw."),
+    runs: int = typer.Option(1, help="Monte Carlo runs (run 0 is recorded in full)."),
+    out: Path = typer.Option(None, help="Recording path [default: recordings/sea.rrd]."),
+    force: bool = typer.Option(False, help="Overwrite existing outputs."),
+    metrics: Path = typer.Option(None, help="Write the metrics JSON here."),
+    spawn: bool = typer.Option(False, help="Also stream to a spawned native viewer."),
+    serve: bool = typer.Option(False, help="Also serve the stream over gRPC."),
+    jobs: int = typer.Option(None, help="Processes for Monte Carlo runs [default: up to 2]."),
+    estimators: str = typer.Option("geometric,rls,window-rls,ekf,gtsam,isam2",
+                                   help="Comma-separated estimators to run."),
+    lam: float = typer.Option(1.0, help="Forgetting factor lambda of algorithm 2, in (0, 1]."),
+    window: int = typer.Option(120, help="Window length M of algorithm 3, in steps."),
+    order: int = typer.Option(5, help="AR order n = m of both angle models."),
+    intercept: bool = typer.Option(False, help="Estimate the AR intercepts c0, b0."),
+    regressors: str = typer.Option("measured", help="AR regressors: measured (reading A) | filtered."),
+    horizon: int = typer.Option(20, help="Forecast steps l."),
+    sigma_alpha: float = typer.Option(0.88, help="Azimuth noise, arcmin."),
+    sigma_beta: float = typer.Option(1.56, help="Elevation noise, arcmin."),
+    sigma_observer: float = typer.Option(1.0, help="Observer position noise per axis, m."),
+    sigma_acc: float = typer.Option(None, help="Target acceleration noise, m/s^2 [0.1; ais 0.3]."),
+    height: float = typer.Option(None, help="Camera height h, m [3; ais 20]."),
+    duration: float = typer.Option(None, help="Run length, s [72; ais 180]."),
+    dt: float = typer.Option(0.1, help="Time step, s."),
+    ekf_gate: float = typer.Option(0.0, help="EKF chi-square gate probability (0 = off)."),
+    robust: bool = typer.Option(False, help="Huber noise model in the GTSAM factors."),
+    mmsi: int = typer.Option(None, help="ais: the ship [default: the most manoeuvring one]."),
+    data: Path = typer.Option(None, help="ais: the AIS CSV [default: <data root>/ais/...]."),
+    ais_range: float = typer.Option(1000.0, help="ais: camera stand-off from the track, m."),
+) -> None:
+    """Paper 002: an object on the sea seen by a monocular camera."""
+    from workbench.experiments.sea.config import SeaConfig
+
+    is_ais = scenario == "ais"
+    cfg = SeaConfig(
+        scenario=scenario, seed=seed, runs=runs, lam=lam, window=window, order_alpha=order,
+        order_beta=order, intercept=intercept, regressors=regressors, horizon=horizon,
+        sigma_alpha_arcmin=sigma_alpha, sigma_beta_arcmin=sigma_beta,
+        sigma_observer=sigma_observer,
+        sigma_acc=sigma_acc if sigma_acc is not None else (0.3 if is_ais else 0.1),
+        height=height if height is not None else (20.0 if is_ais else 3.0),
+        duration=duration if duration is not None else (180.0 if is_ais else 72.0),
+        dt=dt, ekf_gate=ekf_gate, robust=robust, mmsi=mmsi, data=data, ais_range=ais_range,
+        estimators=tuple(e.strip() for e in estimators.split(",") if e.strip()),
+    )
+    run_sea(cfg, out, force, metrics, spawn, serve, jobs)
+
+
+@app.command()
+@friendly
+def demo(
+    force: bool = typer.Option(False, help="Overwrite existing recordings."),
+    runs: int = typer.Option(20, help="Monte Carlo runs per experiment."),
+) -> None:
+    """Run every experiment on its defaults; recordings go to recordings/."""
+    from workbench.experiments.sea.config import SeaConfig
+
+    written = []
+    for scenario in ("paper", "impulse", "track-loss"):
+        cfg = SeaConfig(scenario=scenario, runs=runs)
+        out = RECORDINGS / f"sea-{scenario}.rrd"
+        stats = run_sea(cfg, out, force, RECORDINGS / f"sea-{scenario}.json", False, False, None,
+                        quiet=True)
+        written.append((out, stats))
+        typer.echo(f"sea {scenario:10s} -> {out}  ({stats['wall_seconds']:.1f} s)")
+    try:
+        cfg = SeaConfig(scenario="ais", runs=min(runs, 5), height=20.0, duration=180.0, sigma_acc=0.3)
+        out = RECORDINGS / "sea-ais.rrd"
+        stats = run_sea(cfg, out, force, RECORDINGS / "sea-ais.json", False, False, None, quiet=True)
+        typer.echo(f"sea {'ais':10s} -> {out}  ({stats['wall_seconds']:.1f} s)")
+    except WorkbenchError as exc:  # the real data is optional for the demo
+        typer.echo(f"sea ais skipped: {exc}")
+    typer.echo(f"\nrecordings in {RECORDINGS}; open one with: workbench view {written[0][0]}")
+
+
+@app.command()
+@friendly
+def view(
+    file: Path = typer.Argument(..., help="A .rrd recording."),
+    web: bool = typer.Option(False, help="Serve the web viewer even where a display exists."),
+    port: int = typer.Option(9090, help="Web viewer port."),
+) -> None:
+    """Open a recording: the native viewer where a display exists, else the web viewer."""
+    if not file.is_file():
+        raise WorkbenchError(f"no such recording: {file}")
+    exe = shutil.which("rerun") or str(Path(sys.executable).with_name("rerun"))
+    has_display = bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")
+                       or sys.platform in ("darwin", "win32"))
+    if has_display and not web:
+        subprocess.run([exe, str(file)], check=False)
+        return
+    typer.echo(f"serving the web viewer at http://localhost:{port} (Ctrl-C to stop)")
+    subprocess.run([exe, "--web-viewer", "--web-viewer-port", str(port), str(file)], check=False)
+
+
+def main() -> None:
+    app()
+
+
+if __name__ == "__main__":
+    main()

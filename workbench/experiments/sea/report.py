@@ -1,0 +1,50 @@
+"""The results table: Table 2's columns per estimator (mean +- spread over runs), the
+paper's rows beside ours, and the scenario's extra figures."""
+
+from __future__ import annotations
+
+from workbench.experiments.sea.paper import TABLE2
+
+COLS = ("x", "y", "alpha", "beta")
+
+
+def table(stats: dict) -> str:
+    """Markdown (also readable as plain text)."""
+    runs = stats["runs"]
+    head = ("| estimator | rmse x m | rmse y m | rmse alpha ' | rmse beta ' | bias x m | bias y m "
+            "| bias alpha ' | bias beta ' | s/run |")
+    lines = [f"**sea / {stats['scenario']}** ({stats.get('label', '')}), {runs} run(s), "
+             f"seed {stats['seed']}; mean +- std over runs", "", head, "|" + "---|" * 10]
+    for name, e in stats["estimators"].items():
+        cells = [_pm(e["rmse"][c], e["rmse_std"][c], runs) for c in COLS]
+        cells += [_pm(e["bias"][c], e["bias_std"][c], runs) for c in COLS]
+        lines.append(f"| {name} | " + " | ".join(cells) + f" | {e['seconds']:.3f} |")
+    if stats["scenario"] in ("paper", "track-loss", "impulse"):
+        for name, row in TABLE2.items():
+            cells = [f"{row['rmse'][c]:g}" for c in COLS] + [f"{row['bias'][c]:g}" for c in COLS]
+            lines.append(f"| paper: {name} | " + " | ".join(cells) + " | |")
+    extra = []
+    for name, e in stats["estimators"].items():
+        bits = [f"position rmse {e['position_rmse']:.2f} m"]
+        if e["coverage"] < 1.0:
+            bits.append(f"estimates {100 * e['coverage']:.0f} % of steps")
+        if "anees" in e:
+            lo, hi = e["anees_band"]
+            bits.append(f"ANEES {e['anees']:.2f} (95 % band {lo:.2f}-{hi:.2f})")
+        if "recovery" in e:
+            r = e["recovery"]
+            state = "" if r["settled"] else ", not settled by the end"
+            bits.append(f"impulse transient {r['seconds']:.1f} s above {r['level_arcmin']:.2f}'{state}")
+        if "forecast_rmse" in e:
+            f = e["forecast_rmse"]
+            bits.append(f"{f['steps']}-step forecast rmse x {f['x']:.1f} m, y {f['y']:.1f} m")
+        if "rmse_during_loss" in e:
+            r = e["rmse_during_loss"]
+            bits.append(f"during the loss rmse x {r['x']:.1f} m, y {r['y']:.1f} m")
+        extra.append(f"- {name}: " + "; ".join(bits))
+    return "\n".join(lines + [""] + extra)
+
+
+def _pm(mean: float, std: float, runs: int) -> str:
+    fmt = ".3g" if abs(mean) < 0.1 else ".2f"
+    return f"{mean:{fmt}}" + (f" +- {std:.2f}" if runs > 1 else "")

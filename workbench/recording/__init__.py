@@ -1,0 +1,1 @@
+"""Everything Rerun: opening a stream, properties, columnar drawing helpers, reading back."""

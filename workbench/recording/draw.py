@@ -1,0 +1,115 @@
+"""Columnar drawing helpers: everything logged per step goes through ``send_columns``.
+
+Maps are drawn in a top-down 3D view (z up, the sea at z = 0): 2D views are y-down and
+``Ellipses2D`` has no rotation, so covariance ellipses are flat ``Ellipsoids3D``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import rerun as rr
+
+PALETTE = {
+    "truth": (230, 230, 230), "observer": (80, 160, 255), "geometric": (255, 170, 0),
+    "rls": (60, 200, 90), "window-rls": (0, 210, 200), "ekf": (230, 70, 70),
+    "gtsam": (190, 90, 240), "isam2": (255, 110, 200), "measured": (140, 140, 140),
+}
+
+
+def color(name: str) -> tuple[int, int, int]:
+    return PALETTE.get(name, (200, 200, 200))
+
+
+def times(timeline: str, seconds: np.ndarray) -> rr.TimeColumn:
+    return rr.TimeColumn(timeline, duration=np.asarray(seconds, float))
+
+
+def scalars(rec: rr.RecordingStream, path: str, timeline: str, t: np.ndarray, values: np.ndarray,
+            name: str, rgb: tuple[int, int, int], width: float = 1.5) -> int:
+    """A time series (NaNs dropped), styled once statically; returns the row count."""
+    values = np.asarray(values, float)
+    ok = np.isfinite(values)
+    rec.log(path, rr.SeriesLines(colors=[rgb], names=[name], widths=[width]), static=True)
+    if ok.any():
+        rec.send_columns(path, indexes=[times(timeline, t[ok])],
+                         columns=rr.Scalars.columns(scalars=values[ok]))
+    return int(ok.sum())
+
+
+def _xyz(xy: np.ndarray, z: float = 0.0) -> np.ndarray:
+    xy = np.asarray(xy, float)
+    return np.concatenate([xy, np.full(xy.shape[:-1] + (1,), z)], axis=-1)
+
+
+def track(rec: rr.RecordingStream, path: str, xy: np.ndarray, rgb, radius: float = 0.6) -> None:
+    """A whole path as one static line strip (segments split at NaNs)."""
+    xy = np.asarray(xy, float)
+    ok = np.isfinite(xy).all(axis=1)
+    strips, cur = [], []
+    for p, good in zip(_xyz(xy), ok, strict=True):
+        if good:
+            cur.append(p)
+        elif cur:
+            strips.append(np.array(cur))
+            cur = []
+    if cur:
+        strips.append(np.array(cur))
+    rec.log(path, rr.LineStrips3D(strips, colors=[rgb], radii=[radius]), static=True)
+
+
+def moving_point(rec: rr.RecordingStream, path: str, timeline: str, t: np.ndarray, xy: np.ndarray,
+                 rgb, radius: float = 3.0, label: str | None = None) -> int:
+    """One point per step (NaN steps skipped)."""
+    ok = np.isfinite(xy).all(axis=1)
+    if label:
+        rec.log(path, rr.Points3D.from_fields(colors=[rgb], radii=[radius], labels=[label],
+                                              show_labels=False), static=True)
+    else:
+        rec.log(path, rr.Points3D.from_fields(colors=[rgb], radii=[radius]), static=True)
+    if ok.any():
+        rec.send_columns(path, indexes=[times(timeline, t[ok])],
+                         columns=rr.Points3D.columns(positions=_xyz(xy[ok])))
+    return int(ok.sum())
+
+
+def segments(rec: rr.RecordingStream, path: str, timeline: str, t: np.ndarray, start: np.ndarray,
+             end: np.ndarray, rgb, radius: float = 0.3) -> int:
+    """One line segment per step (e.g. the line of sight)."""
+    ok = np.isfinite(start).all(axis=1) & np.isfinite(end).all(axis=1)
+    rec.log(path, rr.LineStrips3D.from_fields(colors=[rgb], radii=[radius]), static=True)
+    strips = np.stack([_xyz(start[ok]), _xyz(end[ok])], axis=1)
+    if ok.any():
+        rec.send_columns(path, indexes=[times(timeline, t[ok])],
+                         columns=rr.LineStrips3D.columns(strips=list(strips)))
+    return int(ok.sum())
+
+
+def polylines(rec: rr.RecordingStream, path: str, timeline: str, t: np.ndarray, paths: np.ndarray,
+              rgb, radius: float = 0.4) -> int:
+    """One polyline per step, ``paths (T, L, 2)`` (e.g. a forecast drawn ahead of the present)."""
+    ok = np.isfinite(paths).all(axis=(1, 2))
+    rec.log(path, rr.LineStrips3D.from_fields(colors=[rgb], radii=[radius]), static=True)
+    if ok.any():
+        rec.send_columns(path, indexes=[times(timeline, t[ok])],
+                         columns=rr.LineStrips3D.columns(strips=list(_xyz(paths[ok]))))
+    return int(ok.sum())
+
+
+def covariance_ellipses(rec: rr.RecordingStream, path: str, timeline: str, t: np.ndarray,
+                        centers: np.ndarray, cov: np.ndarray, rgb, n_sigma: float = 2.4477) -> int:
+    """Flat ellipsoids of the 2D position covariance (95 % by default), one per step."""
+    ok = np.isfinite(centers).all(axis=1) & np.isfinite(cov).all(axis=(1, 2))
+    if not ok.any():
+        return 0
+    vals, vecs = np.linalg.eigh(cov[ok])
+    half = n_sigma * np.sqrt(np.clip(vals, 0.0, None))
+    angle = np.arctan2(vecs[:, 1, 1], vecs[:, 0, 1])  # direction of the major axis
+    quats = np.stack([np.zeros_like(angle), np.zeros_like(angle), np.sin(angle / 2),
+                      np.cos(angle / 2)], axis=1)
+    half_sizes = np.stack([half[:, 1], half[:, 0], np.full(len(half), 0.05)], axis=1)
+    rec.log(path, rr.Ellipsoids3D.from_fields(colors=[rgb], fill_mode=rr.components.FillMode.MajorWireframe),
+            static=True)
+    rec.send_columns(path, indexes=[times(timeline, t[ok])],
+                     columns=rr.Ellipsoids3D.columns(centers=_xyz(centers[ok]), half_sizes=half_sizes,
+                                                     quaternions=quats))
+    return int(ok.sum())
