@@ -37,6 +37,15 @@ def friendly(fn: Callable) -> Callable:
         except KeyboardInterrupt:
             typer.echo("interrupted", err=True)
             raise typer.Exit(130) from None
+        except (typer.Exit, SystemExit):
+            raise
+        except Exception as exc:  # a bug, not bad input: one line unless debugging
+            if os.environ.get("WORKBENCH_DEBUG"):
+                raise
+            first = str(exc).strip().splitlines()[0] if str(exc).strip() else ""
+            typer.echo(f"internal error: {type(exc).__name__}: {first} "
+                       "(set WORKBENCH_DEBUG=1 for the traceback)", err=True)
+            raise typer.Exit(1) from None
 
     return wrapper
 

@@ -23,6 +23,11 @@ from __future__ import annotations
 import numpy as np
 from scipy.signal import lfilter
 
+RTOL = 1e-10
+"""Relative cut-off of the pseudo-inverses. The closed forms build W from differences of
+running sums, whose rounding (about 1e-15 of the sums) must not pass for rank: the sea
+experiment's windows have condition numbers of 1e3 to 1e6, far inside this cut-off."""
+
 
 def regressors(series: np.ndarray, order: int, intercept: bool) -> np.ndarray:
     """AR regressor rows ``H_t = (1?, s_{t-1}, ..., s_{t-order})``; NaN for ``t < order``."""
@@ -51,7 +56,7 @@ def rls_recursive(H: np.ndarray, y: np.ndarray, lam: float = 1.0, rows: np.ndarr
         if use[t]:
             h = H[t]
             W = W + np.outer(h, h)
-            theta = theta + np.linalg.pinv(W) @ h * (y[t] - h @ theta)
+            theta = theta + np.linalg.pinv(W, rtol=RTOL) @ h * (y[t] - h @ theta)
         out[t] = theta
     return out
 
@@ -77,7 +82,7 @@ def window_rls_recursive(H: np.ndarray, y: np.ndarray, window: int, rows: np.nda
             if use[s]:
                 h = H[s]
                 W = W + np.outer(h, h)
-                theta = theta + np.linalg.pinv(W) @ h * (y[s] - h @ theta)
+                theta = theta + np.linalg.pinv(W, rtol=RTOL) @ h * (y[s] - h @ theta)
         out[t] = prev = theta
     return out
 
@@ -129,4 +134,4 @@ def _products(H: np.ndarray, y: np.ndarray, rows: np.ndarray | None):
 
 def _solve(W: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Batched minimum-norm solutions ``W_t^+ b_t``."""
-    return np.einsum("tij,tj->ti", np.linalg.pinv(W, hermitian=True), b)
+    return np.einsum("tij,tj->ti", np.linalg.pinv(W, rtol=RTOL, hermitian=True), b)

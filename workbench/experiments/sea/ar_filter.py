@@ -109,10 +109,10 @@ def _sequential(y: np.ndarray, order: int, cfg: SeaConfig, windowed: bool):
                 Ww = np.zeros((p, p))
                 for hs, ys in rows:
                     Ww += np.outer(hs, hs)
-                    th = th + np.linalg.pinv(Ww) @ hs * (ys - hs @ th)
+                    th = th + np.linalg.pinv(Ww, rtol=drls.RTOL) @ hs * (ys - hs @ th)
             else:
                 W = cfg.lam * W + np.outer(h, h)
-                th = th + np.linalg.pinv(W) @ h * (y[t] - h @ th)
+                th = th + np.linalg.pinv(W, rtol=drls.RTOL) @ h * (y[t] - h @ th)
             est[t] = h @ th
         else:
             W = cfg.lam * W

@@ -45,7 +45,9 @@ class MotionModel:
     """Whitened CWNA rows for one step, reused for every step (same dt)."""
 
     def __init__(self, dt: float, sigma_acc: float):
-        q = sigma_acc**2 * dt
+        # a factor needs a full-rank weight: a target simulated without acceleration noise
+        # is smoothed with 1e-4 m/s^2 (its effect is far below every other noise here)
+        q = max(sigma_acc, 1e-4) ** 2 * dt
         Q = q * np.array([[dt**3 / 3.0, dt**2 / 2.0], [dt**2 / 2.0, dt]])
         Li = np.linalg.inv(np.linalg.cholesky(Q))
         A = np.zeros((6, 12))  # columns: P(k), V(k), P(k+1), V(k+1), three each
@@ -159,8 +161,13 @@ def batch(data: SeaData, cfg: SeaConfig, covariances: bool = False,
     Vel = np.array([result.atPoint3(V(k))[:2] for k in range(T)])
     cov = None
     if covariances:
-        marg = gtsam.Marginals(graph, result)
-        cov = np.array([marg.marginalCovariance(P(k))[:2, :2] for k in range(T)])
+        # Marginals() factorises with Cholesky, which this geometry defeats; an iSAM2 with QR
+        # seeded at the LM solution gives the same marginals.
+        qr = gtsam.ISAM2Params()
+        qr.setFactorization("QR")
+        isam = gtsam.ISAM2(qr)
+        isam.update(graph, result)
+        cov = np.array([isam.marginalCovariance(P(k))[:2, :2] for k in range(T)])
     est = from_positions("gtsam", data, X, velocity=Vel, covariance=cov, causal=False)
     est.seconds = time.perf_counter() - t0
     return est
