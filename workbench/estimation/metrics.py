@@ -6,8 +6,6 @@ an estimator has no estimate are NaN and are left out of its time averages.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 from scipy import stats
 
@@ -43,19 +41,3 @@ def chi2_band(dof: int, runs: int, confidence: float = 0.95) -> tuple[float, flo
     lo = stats.chi2.ppf(alpha / 2.0, total) / runs
     hi = stats.chi2.ppf(1.0 - alpha / 2.0, total) / runs
     return float(lo), float(hi)
-
-
-@dataclass(frozen=True)
-class Spread:
-    """A statistic over Monte Carlo runs: its mean and standard deviation."""
-
-    mean: float
-    std: float
-
-    @classmethod
-    def of(cls, values: np.ndarray) -> Spread:
-        values = np.asarray(values, dtype=float)
-        values = values[np.isfinite(values)]
-        if values.size == 0:
-            return cls(float("nan"), float("nan"))
-        return cls(float(values.mean()), float(values.std(ddof=1)) if values.size > 1 else 0.0)

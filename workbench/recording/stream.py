@@ -24,16 +24,7 @@ def check_output(path: Path, force: bool) -> Path:
         raise WorkbenchError(f"recording path must end in .rrd: {path}")
     if path.is_dir():
         raise WorkbenchError(f"recording path is a directory: {path}")
-    if path.exists() and not force:
-        raise WorkbenchError(f"{path} exists; pass --force to overwrite it")
-    parent = path.parent
-    try:
-        parent.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise WorkbenchError(f"cannot create {parent}: {exc.strerror}") from None
-    if not os.access(parent, os.W_OK):
-        raise WorkbenchError(f"cannot write to {parent}")
-    return path
+    return check_plain_output(path, force, "recording")
 
 
 def check_plain_output(path: Path, force: bool, what: str) -> Path:

@@ -10,6 +10,7 @@ stationary mast ``ais_range`` metres abeam of the segment's middle, looking at i
 from __future__ import annotations
 
 import csv
+import functools
 from dataclasses import dataclass
 from datetime import datetime
 from pathlib import Path
@@ -111,9 +112,14 @@ def default_mmsi(tracks: dict[int, ShipTrack], duration: float) -> int:
     return mmsi
 
 
+@functools.lru_cache(maxsize=4)
 def ship_scenario(path: Path | None, mmsi: int | None, duration: float, dt: float,
                   standoff: float) -> dict:
-    """Target truth and observer for ``scenario ais``: arrays ready for :func:`scenario.simulate`."""
+    """Target truth and observer for ``scenario ais``, ready for :func:`scenario.simulate`.
+
+    Cached: every run of a Monte Carlo set shares one ship, so the file is read once per
+    process (the arrays are read-only by convention).
+    """
     tracks = load(path)
     if mmsi is None:
         mmsi = default_mmsi(tracks, duration)

@@ -25,7 +25,6 @@ class Estimate:
     state_cov: np.ndarray | None = None   # (T, 4, 4) for NEES, where the estimator has one
     velocity: np.ndarray | None = None    # (T, 2)
     forecast: np.ndarray | None = None    # (T, L, 2) positions 1..L steps ahead of each step
-    causal: bool = True                   # False for smoothers (uses future data)
 
 
 def from_positions(name: str, data: SeaData, position: np.ndarray, **kw) -> Estimate:

@@ -100,8 +100,9 @@ def record(rec: rr.RecordingStream, first: RunResult, runs: list[RunSummary], ta
             draw.scalars(rec, f"/monte_carlo/position_rmse/{name}", TL, t, curve, name, draw.color(name))
     for name in runs[0].nees:
         N = np.nanmean(np.stack([r.nees[name] for r in runs]), axis=0)
-        lo, hi = metrics.chi2_band(4, len(runs))
         draw.scalars(rec, f"/monte_carlo/nees/{name}", TL, t, N, f"{name} ANEES", draw.color(name))
+    if runs[0].nees:
+        lo, hi = metrics.chi2_band(4, len(runs))
         draw.scalars(rec, "/monte_carlo/nees/bound_lo", TL, t, np.full_like(t, lo), "95 % low",
                      (150, 150, 150), 1.0)
         draw.scalars(rec, "/monte_carlo/nees/bound_hi", TL, t, np.full_like(t, hi), "95 % high",

@@ -34,11 +34,11 @@ class RunResult:
     errors: dict[str, np.ndarray] = field(default_factory=dict)
 
 
-def make_data(cfg: SeaConfig, run: int, ship: dict | None = None) -> SeaData:
+def make_data(cfg: SeaConfig, run: int) -> SeaData:
     """The run's dataset, seeded by ``(seed, run)`` so runs are independent and repeatable."""
     rng = np.random.default_rng([cfg.seed, run])
     if cfg.scenario == "ais":
-        ship = ship or ais.ship_scenario(cfg.data, cfg.mmsi, cfg.duration, cfg.dt, cfg.ais_range)
+        ship = ais.ship_scenario(cfg.data, cfg.mmsi, cfg.duration, cfg.dt, cfg.ais_range)
         return simulate(cfg, rng, target=ship["target"], observer=ship["observer"],
                         course=ship["course"], label=ship["label"])
     return simulate(cfg, rng)
@@ -81,9 +81,8 @@ def errors(data: SeaData, est: Estimate) -> np.ndarray:
     ], axis=1)
 
 
-def run_once(cfg: SeaConfig, run: int, covariances: bool = False,
-             ship: dict | None = None) -> RunResult:
-    data = make_data(cfg, run, ship)
+def run_once(cfg: SeaConfig, run: int, covariances: bool = False) -> RunResult:
+    data = make_data(cfg, run)
     est = run_estimators(data, cfg, covariances)
     return RunResult(data, est, {name: errors(data, e) for name, e in est.items()})
 
@@ -97,7 +96,7 @@ class RunSummary:
     nees: dict[str, np.ndarray]
     forecast_err: dict[str, np.ndarray]
     seconds: dict[str, float]
-    disturbed: np.ndarray
+    seen: np.ndarray
     t: np.ndarray
     transient: dict[str, np.ndarray] = field(default_factory=dict)
 
@@ -122,7 +121,7 @@ def summarise(result: RunResult, cfg: SeaConfig, run: int) -> RunSummary:
     if cfg.scenario == "impulse":
         transient = impulse_transient(result, cfg, run)
     return RunSummary(run, result.errors, nees, fc,
-                      {n: e.seconds for n, e in result.estimates.items()}, data.disturbed, data.t,
+                      {n: e.seconds for n, e in result.estimates.items()}, data.seen, data.t,
                       transient)
 
 
@@ -143,17 +142,14 @@ def impulse_transient(result: RunResult, cfg: SeaConfig, run: int) -> dict[str, 
     return {n: result.errors[n][:, 2] - clean.errors[n][:, 2] for n in clean.errors}
 
 
-def _worker(args: tuple[SeaConfig, int, dict | None]) -> RunSummary:
-    cfg, run, ship = args
-    return summarise(run_once(cfg, run, ship=ship), cfg, run)
+def _worker(args: tuple[SeaConfig, int]) -> RunSummary:
+    cfg, run = args
+    return summarise(run_once(cfg, run), cfg, run)
 
 
 def monte_carlo(cfg: SeaConfig, first: RunResult | None = None, jobs: int | None = None,
                 progress: Callable[[int], None] | None = None) -> list[RunSummary]:
     """Runs ``0 .. runs-1`` (run 0 may be given, already computed with covariances)."""
-    ship = None
-    if cfg.scenario == "ais":
-        ship = ais.ship_scenario(cfg.data, cfg.mmsi, cfg.duration, cfg.dt, cfg.ais_range)
     out: list[RunSummary] = []
     todo = list(range(cfg.runs))
     if first is not None:
@@ -164,12 +160,12 @@ def monte_carlo(cfg: SeaConfig, first: RunResult | None = None, jobs: int | None
     jobs = jobs or min(2, os.cpu_count() or 1)
     if len(todo) <= 2 or jobs == 1:
         for r in todo:
-            out.append(_worker((cfg, r, ship)))
+            out.append(_worker((cfg, r)))
             if progress:
                 progress(1)
     else:
         with ProcessPoolExecutor(max_workers=jobs) as pool:
-            for s in pool.map(_worker, [(cfg, r, ship) for r in todo], chunksize=2):
+            for s in pool.map(_worker, [(cfg, r) for r in todo], chunksize=2):
                 out.append(s)
                 if progress:
                     progress(1)
@@ -188,9 +184,9 @@ def statistics(cfg: SeaConfig, runs: list[RunSummary], label: str = "") -> dict:
     scale = np.array([1.0, 1.0, to_arcmin(1.0), to_arcmin(1.0), 1.0])
     for name in names:
         E = np.stack([r.errors[name] for r in runs]) * scale  # (runs, T, 5)
-        b = np.nanmean(E, axis=1)
-        rm = np.sqrt(np.nanmean(E**2, axis=1))
-        mx = np.nanmax(np.abs(E), axis=1)
+        b = metrics.bias(E, axis=1)
+        rm = metrics.rmse(E, axis=1)
+        mx = metrics.max_abs(E, axis=1)
         entry: dict = {
             "rmse": _named(rm.mean(axis=0)), "rmse_std": _named(rm.std(axis=0)),
             "bias": _named(b.mean(axis=0)), "bias_std": _named(b.std(axis=0)),
@@ -201,12 +197,10 @@ def statistics(cfg: SeaConfig, runs: list[RunSummary], label: str = "") -> dict:
         }
         if name in runs[0].transient:
             D = np.stack([r.transient[name] for r in runs]) * scale[2]
-            entry["recovery"] = _recovery(cfg, runs[0].t, D, to_arcmin(cfg_sigma_alpha(cfg)))
-        if cfg.scenario == "track-loss":
-            lost = ~np.isfinite(np.stack([r.errors["geometric"][:, 0] for r in runs]))[0] \
-                if "geometric" in names else None
-            if lost is not None and lost.any() and np.isfinite(E[:, lost, 0]).any():
-                entry["rmse_during_loss"] = _named(np.sqrt(np.nanmean(E[:, lost] ** 2, axis=(0, 1))))
+            entry["recovery"] = _recovery(cfg, runs[0].t, D, cfg.sigma_alpha_arcmin)
+        lost = ~runs[0].seen  # the same steps in every run: the scenario's loss window
+        if lost.any() and np.isfinite(E[:, lost, 0]).any():
+            entry["rmse_during_loss"] = _named(metrics.rmse(E[:, lost].reshape(-1, 5), axis=0))
         if name in runs[0].nees:
             N = np.stack([r.nees[name] for r in runs])
             per_step = np.nanmean(N, axis=0)
@@ -225,10 +219,6 @@ def statistics(cfg: SeaConfig, runs: list[RunSummary], label: str = "") -> dict:
 
 def _named(v: np.ndarray) -> dict[str, float]:
     return {q: float(x) for q, x in zip(QUANTITIES, v, strict=True)}
-
-
-def cfg_sigma_alpha(cfg: SeaConfig) -> float:
-    return float(np.deg2rad(cfg.sigma_alpha_arcmin / 60.0))
 
 
 def _recovery(cfg: SeaConfig, t: np.ndarray, transient: np.ndarray, level: float) -> dict:

@@ -24,12 +24,11 @@ geometry) and reads its estimate of the newest step: a causal filter-like estima
 
 from __future__ import annotations
 
-import time
-
 import gtsam
 import numpy as np
 from gtsam.symbol_shorthand import P, V
 
+from workbench.estimation import kalman
 from workbench.experiments.sea import geometry
 from workbench.experiments.sea.config import SeaConfig
 from workbench.experiments.sea.estimate import Estimate, from_positions
@@ -47,8 +46,7 @@ class MotionModel:
     def __init__(self, dt: float, sigma_acc: float):
         # a factor needs a full-rank weight: a target simulated without acceleration noise
         # is smoothed with 1e-4 m/s^2 (its effect is far below every other noise here)
-        q = max(sigma_acc, 1e-4) ** 2 * dt
-        Q = q * np.array([[dt**3 / 3.0, dt**2 / 2.0], [dt**2 / 2.0, dt]])
+        Q = kalman.cv_noise_continuous(dt, max(sigma_acc, 1e-4) ** 2 * dt, axes=1)
         Li = np.linalg.inv(np.linalg.cholesky(Q))
         A = np.zeros((6, 12))  # columns: P(k), V(k), P(k+1), V(k+1), three each
         for ax in range(2):
@@ -139,7 +137,6 @@ def _point(xy: np.ndarray) -> np.ndarray:
 def batch(data: SeaData, cfg: SeaConfig, covariances: bool = False,
           factors: FactorSet | None = None) -> Estimate:
     """Levenberg-Marquardt over the whole run (the smoother)."""
-    t0 = time.perf_counter()
     T = data.steps
     factors = factors or FactorSet(data, cfg)
     graph = gtsam.NonlinearFactorGraph()
@@ -168,9 +165,7 @@ def batch(data: SeaData, cfg: SeaConfig, covariances: bool = False,
         isam = gtsam.ISAM2(qr)
         isam.update(graph, result)
         cov = np.array([isam.marginalCovariance(P(k))[:2, :2] for k in range(T)])
-    est = from_positions("gtsam", data, X, velocity=Vel, covariance=cov, causal=False)
-    est.seconds = time.perf_counter() - t0
-    return est
+    return from_positions("gtsam", data, X, velocity=Vel, covariance=cov)
 
 
 def incremental(data: SeaData, cfg: SeaConfig, covariances: bool = False,
@@ -180,7 +175,6 @@ def incremental(data: SeaData, cfg: SeaConfig, covariances: bool = False,
     Relinearisation is checked only where the update touched the tree (the partial check):
     the same estimates as the full check here, at two thirds of the time.
     """
-    t0 = time.perf_counter()
     T, dt, L = data.steps, data.dt, cfg.horizon
     factors = factors or FactorSet(data, cfg)
     params = gtsam.ISAM2Params()
@@ -221,6 +215,4 @@ def incremental(data: SeaData, cfg: SeaConfig, covariances: bool = False,
             cov[k] = isam.marginalCovariance(P(k))[:2, :2]
     steps = np.arange(1, L + 1)[None, :, None] * dt
     forecast = X[:, None, :] + steps * Vel[:, None, :]
-    est = from_positions("isam2", data, X, velocity=Vel, covariance=cov, forecast=forecast)
-    est.seconds = time.perf_counter() - t0
-    return est
+    return from_positions("isam2", data, X, velocity=Vel, covariance=cov, forecast=forecast)
