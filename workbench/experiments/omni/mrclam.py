@@ -1,0 +1,349 @@
+"""Real data for ``omni``: the UTIAS MRCLAM dataset read as bearing-only SLAM logs.
+
+Dataset: K. Y. K. Leung, Y. Halpern, T. D. Barfoot, H. H. T. Liu, "The UTIAS Multi-Robot
+Cooperative Localization and Mapping Dataset", International Journal of Robotics Research
+30(8), 969-974, 2011. Educational and research use.
+
+A dataset folder (``data/mrclam6``) holds, each after four ``#`` header lines and
+whitespace-separated:
+
+==========================  ================================================
+``Robot{N}_Odometry.dat``     time [s], forward velocity v [m/s], yaw rate w [rad/s]
+``Robot{N}_Measurement.dat``  time [s], barcode #, range [m], bearing [rad]
+``Robot{N}_Groundtruth.dat``  time [s], x [m], y [m], heading [rad] (Vicon)
+``Landmark_Groundtruth.dat``  subject #, x [m], y [m], std x [m], std y [m]
+``Barcodes.dat``              subject #, barcode #
+==========================  ================================================
+
+The measurement file's header says "Subject #" but its second column holds *barcodes*;
+``Barcodes.dat`` maps them to subjects. Subjects 1-5 are the robots, the landmarks are the
+subjects listed in ``Landmark_Groundtruth.dat`` (6-20). Measurements of robots and of
+barcodes with no subject are dropped and counted; the range is dropped (bearing-only).
+
+Readings taken here (say so where a caller might assume otherwise):
+
+* Times stay absolute (Unix seconds, float64 keeps the files' millisecond resolution);
+  :attr:`MrclamLog.t0` is the start of the kept stretch, for plotting ``t - t0``.
+* Odometry and ground truth sometimes repeat a time stamp (robot 2's odometry does once);
+  the last row of each repeat is kept, so their times are strictly increasing, and the
+  repeats are counted. Measurements share time stamps (several landmarks in one image), so
+  their times are only non-decreasing. Any time going backwards is an error.
+* The default stretch starts where the start pose is known from the ground truth *and*
+  odometry exists: at the first ground-truth time, or at the first odometry time if that
+  is later (in MRCLAM 6 the Vicon starts about 12 s before the odometry and the robots stand
+  still meanwhile). It ends at the last odometry time within the ground truth's span (robot
+  1's truth ends about two minutes before its odometry).
+"""
+
+from __future__ import annotations
+
+import re
+import warnings
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from workbench.errors import WorkbenchError
+from workbench.estimation.angles import wrap
+
+ROBOT_SUBJECTS = frozenset(range(1, 6))
+"""MRCLAM subject numbers of the robots (the landmarks are 6-20)."""
+
+MAX_TRUTH_GAP = 0.5
+"""Default longest ground-truth gap (s) :meth:`MrclamLog.truth_at` interpolates across."""
+
+_KINDS = {"odometry": "Odometry", "measurement": "Measurement", "groundtruth": "Groundtruth"}
+_ROBOT_FILE = re.compile(r"^Robot(\d+)_(Odometry|Measurement|Groundtruth)\.dat$")
+
+
+@dataclass
+class MrclamLog:
+    """One robot's log over one stretch of time; every array sorted by time.
+
+    Times are absolute dataset seconds; ``t0`` and ``t_end`` bound the stretch (use ``t - t0``
+    for plots). ``source`` is the dataset folder. Shapes: odometry ``(K,)``, measurements
+    ``(M,)`` (bearings in the robot frame, wrapped to (-pi, pi]), truth ``(G,)`` and ``(G, 3)``.
+
+    ``dropped`` counts rows left out within the stretch: ``"robot"`` (measurements of other
+    robots), ``"unknown"`` (barcodes not in ``Barcodes.dat``), ``"no_truth"`` (subjects that are
+    neither robots nor in ``Landmark_Groundtruth.dat``), ``"odom_repeat"`` and
+    ``"truth_repeat"`` (rows with a repeated time stamp). The measurement keys are
+    ``MEASUREMENT_DROPS``: ``M + sum(dropped[k] for k in MEASUREMENT_DROPS)`` is the number of
+    measurement rows in the stretch.
+    """
+
+    robot: int
+    odom_t: np.ndarray
+    odom_v: np.ndarray
+    odom_w: np.ndarray
+    meas_t: np.ndarray
+    meas_landmark: np.ndarray
+    meas_bearing: np.ndarray
+    truth_t: np.ndarray
+    truth_pose: np.ndarray
+    landmarks: dict[int, np.ndarray]
+    dropped: dict[str, int]
+    t0: float
+    t_end: float
+    source: Path = field(default_factory=Path)
+
+    MEASUREMENT_DROPS = ("robot", "unknown", "no_truth")
+
+    def truth_at(self, t: np.ndarray | float, max_gap: float = MAX_TRUTH_GAP) -> np.ndarray:
+        """Ground-truth poses at times ``t`` (absolute s): an array ``(len(t), 3)`` of x, y, heading.
+
+        Linear between the two surrounding Vicon samples; the heading is interpolated along the
+        shorter arc and wrapped to (-pi, pi]. Rows are NaN where ``t`` lies outside the truth's
+        span or inside a gap between samples longer than ``max_gap`` seconds (a time exactly on
+        a sample is always valid).
+        """
+        return interpolate_pose(self.truth_t, self.truth_pose, t, max_gap)
+
+    def landmark_array(self) -> tuple[np.ndarray, np.ndarray]:
+        """Landmark subjects ``(L,)`` in ascending order and their true positions ``(L, 2)``."""
+        ids = np.array(sorted(self.landmarks), dtype=int)
+        return ids, np.array([self.landmarks[i] for i in ids]).reshape(-1, 2)
+
+
+def interpolate_pose(times: np.ndarray, poses: np.ndarray, t: np.ndarray | float,
+                     max_gap: float = MAX_TRUTH_GAP) -> np.ndarray:
+    """Poses ``(x, y, heading)`` sampled at strictly increasing ``times``, interpolated at ``t``.
+
+    See :meth:`MrclamLog.truth_at`; NaN rows outside the span and inside gaps over ``max_gap``.
+    """
+    t = np.atleast_1d(np.asarray(t, dtype=float))
+    out = np.full((t.size, 3), np.nan)
+    n = times.size
+    if n == 0:
+        return out
+    if n == 1:
+        out[t == times[0]] = poses[0]
+        return out
+    inside = (t >= times[0]) & (t <= times[-1])
+    i = np.clip(np.searchsorted(times, t, side="right") - 1, 0, n - 2)
+    span = times[i + 1] - times[i]
+    frac = (t - times[i]) / span
+    ok = inside & ((span <= max_gap) | (frac <= 0.0) | (frac >= 1.0))
+    i, frac = i[ok], frac[ok]
+    p0, p1 = poses[i], poses[i + 1]
+    out[ok, :2] = p0[:, :2] + frac[:, None] * (p1[:, :2] - p0[:, :2])
+    out[ok, 2] = wrap(p0[:, 2] + frac * wrap(p1[:, 2] - p0[:, 2]))
+    return out
+
+
+def robots_in(folder: Path) -> list[int]:
+    """Robot numbers whose odometry, measurement and ground-truth files are all in ``folder``."""
+    folder = _check_folder(folder)
+    found: dict[int, set[str]] = {}
+    for path in folder.iterdir():
+        m = _ROBOT_FILE.match(path.name)
+        if m and path.is_file():
+            found.setdefault(int(m.group(1)), set()).add(m.group(2))
+    return sorted(n for n, kinds in found.items() if len(kinds) == len(_KINDS))
+
+
+def load(folder: Path, robot: int, t_start: float | None = None, t_end: float | None = None) -> MrclamLog:
+    """Load robot ``robot``'s log from an MRCLAM folder, kept from ``t_start`` to ``t_end``.
+
+    ``t_start`` and ``t_end`` are absolute dataset times (s). By default the stretch starts at
+    the first ground-truth time, or at the first odometry time if that is later, so the start
+    pose is known from the ground truth and odometry runs from the first instant; it ends at the
+    last odometry time within the ground truth's span. Explicit times are taken as given (the
+    truth may then not cover them: :meth:`MrclamLog.truth_at` gives NaN there). Odometry and
+    measurements are kept with ``t0 <= t <= t_end``; the ground truth keeps one sample either
+    side of the stretch where it has them, so ``truth_at`` is defined at both ends.
+
+    Raises :class:`WorkbenchError` (one line, naming the file and line) for a missing folder
+    or file, an unknown robot, too few columns, unparsable or non-finite numbers, time going
+    backwards, a non-integer barcode or subject, a repeated barcode or landmark, an empty file,
+    or a stretch with no odometry.
+    """
+    folder = _check_folder(folder)
+    files = {k: folder / f"Robot{robot}_{name}.dat" for k, name in _KINDS.items()}
+    present = [p for p in files.values() if p.is_file()]
+    if not present:
+        robots = robots_in(folder)
+        listed = ", ".join(map(str, robots)) if robots else "none"
+        raise WorkbenchError(f"unknown robot {robot} in {folder}: available robots are {listed}")
+    for path in files.values():
+        _check_file(path)
+
+    landmarks = _read_landmarks(folder / "Landmark_Groundtruth.dat")
+    subject_of = _read_barcodes(folder / "Barcodes.dat")
+
+    odom = _read_table(files["odometry"], 3)
+    _check_time(files["odometry"], odom[:, 0])
+    meas = _read_table(files["measurement"], 4, int_cols=(1,))
+    _check_time(files["measurement"], meas[:, 0])
+    truth = _read_table(files["groundtruth"], 4)
+    _check_time(files["groundtruth"], truth[:, 0])
+
+    t0 = float(max(truth[0, 0], odom[0, 0])) if t_start is None else float(t_start)
+    if t_end is None:
+        within = odom[odom[:, 0] <= truth[-1, 0], 0]
+        if within.size == 0:
+            raise WorkbenchError(f"{files['odometry']}: no odometry within the ground truth's span "
+                                 f"({truth[0, 0]:.3f} to {truth[-1, 0]:.3f} s)")
+        t1 = float(within[-1])
+    else:
+        t1 = float(t_end)
+    if not (np.isfinite(t0) and np.isfinite(t1)) or t1 <= t0:
+        raise WorkbenchError(f"robot {robot} in {folder}: empty stretch t_start = {t0:.3f} s, "
+                             f"t_end = {t1:.3f} s")
+
+    span = f"{odom[0, 0]:.3f} to {odom[-1, 0]:.3f} s"
+    odom = odom[_between(odom[:, 0], t0, t1)]
+    if odom.shape[0] == 0:
+        raise WorkbenchError(f"{files['odometry']}: no odometry between {t0:.3f} and {t1:.3f} s "
+                             f"(the file spans {span})")
+    odom, odom_repeat = _last_of_repeats(odom)
+    meas = meas[_between(meas[:, 0], t0, t1)]
+    lo = max(int(np.searchsorted(truth[:, 0], t0, side="right")) - 1, 0)
+    hi = int(np.searchsorted(truth[:, 0], t1, side="left")) + 1
+    truth, truth_repeat = _last_of_repeats(truth[lo:hi])
+
+    barcode = meas[:, 1].astype(int)
+    subject = np.array([subject_of.get(int(b), -1) for b in barcode], dtype=int)
+    is_landmark = np.isin(subject, np.array(sorted(landmarks), dtype=int))
+    is_robot = np.isin(subject, np.array(sorted(ROBOT_SUBJECTS))) & ~is_landmark
+    unknown = subject < 0
+    dropped = {"robot": int(is_robot.sum()), "unknown": int(unknown.sum()),
+               "no_truth": int((~is_landmark & ~is_robot & ~unknown).sum()),
+               "odom_repeat": odom_repeat, "truth_repeat": truth_repeat}
+    meas = meas[is_landmark]
+    pose = truth[:, 1:4].copy()
+    pose[:, 2] = wrap(pose[:, 2])
+    return MrclamLog(
+        robot=int(robot),
+        odom_t=odom[:, 0].copy(), odom_v=odom[:, 1].copy(), odom_w=odom[:, 2].copy(),
+        meas_t=meas[:, 0].copy(), meas_landmark=subject[is_landmark],
+        meas_bearing=np.asarray(wrap(meas[:, 3]), dtype=float).reshape(-1),
+        truth_t=truth[:, 0].copy(), truth_pose=pose,
+        landmarks=landmarks, dropped=dropped, t0=t0, t_end=t1, source=folder,
+    )
+
+
+# --- reading -------------------------------------------------------------------------------------
+
+def _check_folder(folder: Path) -> Path:
+    folder = Path(folder).expanduser()
+    if not folder.exists():
+        raise WorkbenchError(f"MRCLAM folder not found: {folder} (set WORKBENCH_DATA or pass --data)")
+    if not folder.is_dir():
+        raise WorkbenchError(f"not a folder: {folder} (expected an MRCLAM dataset folder)")
+    return folder
+
+
+def _check_file(path: Path) -> None:
+    if not path.exists():
+        raise WorkbenchError(f"MRCLAM file missing: {path}")
+    if not path.is_file():
+        raise WorkbenchError(f"not a file: {path}")
+
+
+def _data_lines(path: Path) -> list[tuple[int, list[str]]]:
+    """(1-based line number, tokens) of every data line, as ``np.loadtxt(comments='#')`` sees them."""
+    text = path.read_text(encoding="latin-1")
+    rows = []
+    for number, line in enumerate(text.splitlines(), start=1):
+        tokens = line.split("#", 1)[0].split()
+        if tokens:
+            rows.append((number, tokens))
+    return rows
+
+
+def _line_of(path: Path, row: int) -> int:
+    """The file line number of data row ``row`` (0-based); used only when reporting an error."""
+    return _data_lines(path)[row][0]
+
+
+def _read_table(path: Path, ncols: int, int_cols: tuple[int, ...] = ()) -> np.ndarray:
+    """The first ``ncols`` columns of a whitespace-separated ``#``-commented file, as floats.
+
+    The fast path is numpy's C parser; only when it fails is the file scanned line by line to
+    name the offending line.
+    """
+    _check_file(path)
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", UserWarning)  # "input contained no data"
+            table = np.loadtxt(path, comments="#", usecols=range(ncols), ndmin=2, dtype=float,
+                               encoding="latin-1")
+    except (ValueError, UnicodeDecodeError) as exc:
+        _diagnose(path, ncols)
+        first = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        raise WorkbenchError(f"{path}: cannot parse: {first}") from None
+    if table.shape[0] == 0:
+        raise WorkbenchError(f"{path}: no data rows (the file is empty or only comments)")
+    bad = ~np.isfinite(table)
+    if bad.any():
+        row, col = np.argwhere(bad)[0]
+        raise WorkbenchError(f"{path}: line {_line_of(path, int(row))}: non-finite value "
+                             f"{table[row, col]} in column {col + 1}")
+    for col in int_cols:
+        frac = table[:, col] != np.round(table[:, col])
+        if frac.any():
+            row = int(np.argmax(frac))
+            raise WorkbenchError(f"{path}: line {_line_of(path, row)}: column {col + 1} should be an "
+                                 f"integer, got {table[row, col]:g}")
+    return table
+
+
+def _diagnose(path: Path, ncols: int) -> None:
+    """Raise a WorkbenchError naming the first line with too few columns or a bad number."""
+    if b"\0" in path.read_bytes():
+        raise WorkbenchError(f"{path}: binary data, not a whitespace-separated text table")
+    for number, tokens in _data_lines(path):
+        if len(tokens) < ncols:
+            raise WorkbenchError(f"{path}: line {number}: {len(tokens)} column(s), expected at least "
+                                 f"{ncols}")
+        for col, token in enumerate(tokens[:ncols], start=1):
+            try:
+                float(token)
+            except ValueError:
+                raise WorkbenchError(f"{path}: line {number}: cannot parse {token[:40]!r} in column "
+                                     f"{col} as a number") from None
+
+
+def _check_time(path: Path, t: np.ndarray) -> None:
+    """Time must not go backwards (repeats are allowed here and handled by the caller)."""
+    back = np.flatnonzero(np.diff(t) < 0)
+    if back.size:
+        row = int(back[0]) + 1
+        lines = _data_lines(path)
+        raise WorkbenchError(f"{path}: line {lines[row][0]}: time goes backwards, {t[row]:.3f} s after "
+                             f"{t[row - 1]:.3f} s on line {lines[row - 1][0]}")
+
+
+def _read_landmarks(path: Path) -> dict[int, np.ndarray]:
+    table = _read_table(path, 3, int_cols=(0,))
+    subjects = table[:, 0].astype(int)
+    _check_unique(path, subjects, "landmark subject")
+    return {int(s): table[i, 1:3].copy() for i, s in enumerate(subjects)}
+
+
+def _read_barcodes(path: Path) -> dict[int, int]:
+    table = _read_table(path, 2, int_cols=(0, 1)).astype(int)
+    _check_unique(path, table[:, 1], "barcode")
+    return {int(b): int(s) for s, b in table}
+
+
+def _check_unique(path: Path, values: np.ndarray, what: str) -> None:
+    _, first, counts = np.unique(values, return_index=True, return_counts=True)
+    if (counts > 1).any():
+        value = values[first[np.argmax(counts > 1)]]
+        rows = np.flatnonzero(values == value)
+        raise WorkbenchError(f"{path}: line {_line_of(path, int(rows[1]))}: {what} {value} repeats "
+                             f"(first on line {_line_of(path, int(rows[0]))})")
+
+
+def _between(t: np.ndarray, t0: float, t1: float) -> np.ndarray:
+    return (t >= t0) & (t <= t1)
+
+
+def _last_of_repeats(table: np.ndarray) -> tuple[np.ndarray, int]:
+    """Keep the last row of each run of equal times; return the rows and how many were dropped."""
+    keep = np.append(np.diff(table[:, 0]) > 0, True)
+    return table[keep], int((~keep).sum())
+
