@@ -1,0 +1,242 @@
+"""Bearing-only EKF-SLAM (6)-(15) with the UT-gated landmark initialisation (1)-(5).
+
+State ``[x_r, y_r, phi_r, x_L1, y_L1, ...]`` (6), plus (in the ``clone`` augmentation) a
+copy of the vehicle pose per pending landmark. Prediction (7)-(8) touches only the pose
+rows: between two bearing epochs the pose block is propagated step by step and the
+cross-covariances once with the product of the F_R (:meth:`Motion.propagate`). The update
+(9)-(13) processes an epoch's bearings together, ``P+ = P- - K S K'`` symmetrised.
+
+Augmentation (14)-(15), two readings (``spec/omni.md``):
+
+* ``paper`` (``ekf-paper``): the nearest runnable reading of (15). The UT of (2)-(5) runs on
+  the diagonal covariance (3) (the first sighting's pose variances, stored then; the
+  current pose's variances; the two bearing variances). The cross-covariance block that (15)
+  writes ``F_R P_rr``, ``F_R P_rl`` (its dimensions do not fit a 2-D landmark) becomes
+  ``G_j [P_rr P_rl]`` with ``G_j`` the triangulation's Jacobian with respect to the current
+  pose; the first sighting's pose and its correlations are lost.
+* ``clone`` (``ekf``): when a line is first seen the current pose is cloned into the state,
+  so its correlations with everything stay exact. The UT runs on the joint covariance of
+  the clone and the current pose; the landmark's cross-covariance is
+  ``G_i P_{clone,.} + G_j P_{r,.}``; the clone is then dropped. A pending clone unseen for
+  ``drop_after`` seconds is dropped too.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy import stats
+
+from workbench.estimation.angles import wrap
+from workbench.experiments.omni import triangulation
+from workbench.experiments.omni.config import OmniConfig
+from workbench.experiments.omni.estimate import SlamEstimate
+from workbench.experiments.omni.scenario import OmniData
+
+AUGMENTATIONS = ("paper", "clone")
+
+
+class BearingEkf:
+    """The filter's state and its four operations: predict, update, start, initialise."""
+
+    def __init__(self, data: OmniData, cfg: OmniConfig, augmentation: str, trace: bool = False):
+        if augmentation not in AUGMENTATIONS:
+            raise ValueError(f"augmentation must be one of {AUGMENTATIONS}")
+        self.data, self.cfg, self.mode, self.trace = data, cfg, augmentation, trace
+        self.x = data.start.astype(float).copy()
+        self.P = data.start_cov.astype(float).copy()
+        n_lm = len(data.landmarks)
+        self.slot = np.full(n_lm, -1)          # state offset of each initialised landmark
+        self.pending: dict[int, dict] = {}     # landmark -> first sighting
+        self.first_seen = np.full(n_lm, -1)
+        self.init_step = np.full(n_lm, -1)
+        self.r = data.sigma_bearing**2
+        self.gate = stats.chi2.ppf(cfg.nis_gate, 1) if cfg.nis_gate > 0 else math.inf
+        self.failures = 0
+        self.attempts: list = []
+
+    # --- (7)-(8) ---------------------------------------------------------------------------
+    def predict(self, controls: np.ndarray, dt: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Propagate over ``len(controls)`` steps; returns the poses and pose covariances."""
+        poses, covs, phi = self.data.motion.propagate(self.x[:3], self.P[:3, :3], controls, dt)
+        self.x[:3] = poses[-1]
+        self.P[:3, :3] = covs[-1]
+        if len(self.x) > 3:
+            cross = phi @ self.P[:3, 3:]
+            self.P[:3, 3:] = cross
+            self.P[3:, :3] = cross.T
+        return poses[1:], covs[1:]
+
+    # --- (9)-(13) --------------------------------------------------------------------------
+    def update(self, lms: np.ndarray, bearings: np.ndarray) -> None:
+        """Update with bearings of initialised landmarks, all at once."""
+        if len(lms) == 0:
+            return
+        n, m = len(self.x), len(lms)
+        off = self.slot[lms]
+        dx = self.x[off] - self.x[0]
+        dy = self.x[off + 1] - self.x[1]
+        q = dx * dx + dy * dy
+        nu = wrap(bearings - (np.arctan2(dy, dx) - self.x[2]))
+        H = np.zeros((m, n))
+        rows = np.arange(m)
+        H[rows, 0] = dy / q
+        H[rows, 1] = -dx / q
+        H[rows, 2] = -1.0
+        H[rows, off] = -dy / q
+        H[rows, off + 1] = dx / q
+        PH = self.P @ H.T
+        S = H @ PH + self.r * np.eye(m)
+        if math.isfinite(self.gate):
+            keep = nu**2 / np.diag(S) <= self.gate
+            if not keep.all():
+                H, nu, PH = H[keep], nu[keep], PH[:, keep]
+                S = S[np.ix_(keep, keep)]
+                if len(nu) == 0:
+                    return
+        try:
+            K = np.linalg.solve(S, PH.T).T
+        except np.linalg.LinAlgError:
+            self.failures += 1
+            return
+        x = self.x + K @ nu
+        P = self.P - K @ S @ K.T
+        if not (np.isfinite(x).all() and np.isfinite(P).all()):
+            self.failures += 1
+            return
+        self.x = x
+        self.x[2] = wrap(self.x[2])
+        self.P = 0.5 * (P + P.T)
+
+    # --- (1)-(5), (14)-(15) ----------------------------------------------------------------
+    def start(self, lm: int, bearing: float, step: int) -> None:
+        """Keep a first sighting: clone the pose into the state, or store it (paper)."""
+        sight = {"bearing": bearing, "step": step, "last": step}
+        if self.mode == "clone":
+            n = len(self.x)
+            self.x = np.concatenate([self.x, self.x[:3]])
+            P = np.empty((n + 3, n + 3))
+            P[:n, :n] = self.P
+            P[:n, n:] = self.P[:, :3]
+            P[n:, :n] = self.P[:3, :]
+            P[n:, n:] = self.P[:3, :3]
+            self.P = P
+            sight["offset"] = n
+        else:
+            sight["pose"] = self.x[:3].copy()
+            sight["var"] = np.diag(self.P[:3, :3]).copy()
+        self.pending[lm] = sight
+
+    def _drop_clone(self, offset: int) -> None:
+        keep = np.r_[0:offset, offset + 3:len(self.x)]
+        self.x = self.x[keep]
+        self.P = self.P[np.ix_(keep, keep)]
+        self.slot[self.slot > offset] -= 3
+        for other in self.pending.values():
+            if other.get("offset", -1) > offset:
+                other["offset"] -= 3
+
+    def drop(self, lm: int) -> None:
+        sight = self.pending.pop(lm)
+        if "offset" in sight:
+            self._drop_clone(sight["offset"])
+
+    def try_initialise(self, lm: int, bearing: float, step: int) -> bool:
+        """Triangulate from the first sighting and this one; augment the state if the gate passes."""
+        cfg, sight = self.cfg, self.pending[lm]
+        sight["last"] = step
+        r2 = self.r
+        if self.mode == "clone":
+            o = sight["offset"]
+            idx = np.r_[o:o + 3, 0:3]
+            mu = np.concatenate([self.x[idx], [sight["bearing"], bearing]])
+            cov = np.zeros((8, 8))
+            cov[:6, :6] = self.P[np.ix_(idx, idx)]
+        else:
+            mu = np.concatenate([sight["pose"], self.x[:3], [sight["bearing"], bearing]])
+            cov = np.diag(np.concatenate([sight["var"], np.diag(self.P[:3, :3]), [0.0, 0.0]]))
+        cov[6, 6] = cov[7, 7] = r2
+        att = triangulation.attempt(mu, cov, cfg.skew_gate, math.radians(cfg.min_parallax_deg), cfg.kappa)
+        if self.trace:
+            self.attempts.append((step, lm, att.points, att.accepted))
+        if not att.accepted:
+            return False
+        G = triangulation.jacobian(mu)
+        if self.mode == "clone":
+            cross = G[:, :3] @ self.P[o:o + 3, :] + G[:, 3:6] @ self.P[:3, :]
+            linear = G[:, :6] @ cov[:6, :6] @ G[:, :6].T
+            p_ll = att.cov
+            # keep the joint covariance PSD: the UT's P_ll must exceed its pose-driven part
+            low = np.linalg.eigvalsh(p_ll - linear).min()
+            if low < 0.0:
+                p_ll = p_ll + (1e-9 - low) * np.eye(2)
+        else:
+            cross = G[:, 3:6] @ self.P[:3, :]
+            p_ll = att.cov
+        n = len(self.x)
+        self.x = np.concatenate([self.x, att.mean])
+        P = np.empty((n + 2, n + 2))
+        P[:n, :n] = self.P
+        P[n:, :n] = cross
+        P[:n, n:] = cross.T
+        P[n:, n:] = p_ll
+        self.P = P
+        self.slot[lm] = n
+        self.init_step[lm] = step
+        self.drop(lm)
+        return True
+
+
+def run(data: OmniData, cfg: OmniConfig, augmentation: str, name: str, trace: bool = False) -> SlamEstimate:
+    """Filter the whole dataset: a pose estimate at every step, the map at every bearing epoch."""
+    f = BearingEkf(data, cfg, augmentation, trace)
+    K, N = data.steps, len(data.landmarks)
+    poses = np.empty((K + 1, 3))
+    covs = np.empty((K + 1, 3, 3))
+    poses[0], covs[0] = f.x[:3], f.P[:3, :3]
+    dt = data.dt
+    epochs = data.epochs()
+    map_steps = np.array([s for s, _ in epochs], int)
+    map_mean = np.full((len(epochs), N, 2), np.nan)
+    map_cov = np.full((len(epochs), N, 2, 2), np.nan)
+    drop_steps = cfg.drop_after
+    last = 0
+    for e, (step, idx) in enumerate(epochs):
+        if step > last:
+            poses[last + 1:step + 1], covs[last + 1:step + 1] = f.predict(data.controls[last:step], dt[last:step])
+            last = step
+        lms, bearings = data.meas_lm[idx], data.meas_bearing[idx]
+        known = f.slot[lms] >= 0
+        f.update(lms[known], bearings[known])
+        now = data.t[step]
+        for lm, b in zip(lms[~known], bearings[~known], strict=True):
+            lm = int(lm)
+            if f.first_seen[lm] < 0:
+                f.first_seen[lm] = step
+            if lm in f.pending:
+                f.try_initialise(lm, float(b), step)
+            else:
+                f.start(lm, float(b), step)
+        for lm in [k for k, s in f.pending.items() if now - data.t[s["last"]] > drop_steps]:
+            f.drop(lm)
+        poses[step], covs[step] = f.x[:3], f.P[:3, :3]
+        on = f.slot >= 0
+        if on.any():
+            o = f.slot[on]
+            map_mean[e, on] = np.stack([f.x[o], f.x[o + 1]], axis=1)
+            for a in range(2):
+                for b in range(2):
+                    map_cov[e, on, a, b] = f.P[o + a, o + b]
+    if K > last:
+        poses[last + 1:], covs[last + 1:] = f.predict(data.controls[last:], dt[last:])
+    return SlamEstimate(name, np.arange(K + 1), poses, covs, map_steps, map_mean, map_cov,
+                        f.first_seen, f.init_step, failures=f.failures, attempts=f.attempts)
+
+
+def odometry(data: OmniData, name: str = "odometry") -> SlamEstimate:
+    """Dead reckoning (7)-(8) alone: no map."""
+    poses, covs, _ = data.motion.propagate(data.start, data.start_cov, data.controls, data.dt)
+    n = len(data.landmarks)
+    return SlamEstimate(name, np.arange(len(poses)), poses, covs, np.zeros(0, int), np.zeros((0, n, 2)),
+                        None, np.full(n, -1), np.full(n, -1))

@@ -1,0 +1,97 @@
+"""Odometry motion models: the paper's bicycle (7)-(8) and a unicycle for wheeled robots.
+
+Poses are ``(x, y, phi)``; a control ``u`` acts over one step ``dt``.
+
+* ``bicycle`` (7), ``u = (V, gamma)``: ``x += dt V cos(phi + gamma)``,
+  ``y += dt V sin(phi + gamma)``, ``phi += dt V sin(gamma) / L``.
+* ``unicycle``, ``u = (v, w)`` (MRCLAM's odometry): ``x += dt v cos phi``,
+  ``y += dt v sin phi``, ``phi += dt w``.
+
+The covariance (8): ``P' = F_R P F_R' + F_U U F_U' + Q`` with ``F_R = df/dx_R``, ``F_U = df/du``.
+Everything here is vectorised over steps: headings are a cumulative sum, positions too,
+given a start pose, so a stretch of dead reckoning costs no Python loop.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from workbench.estimation.angles import wrap
+
+MODELS = ("bicycle", "unicycle")
+
+
+@dataclass(frozen=True)
+class Motion:
+    """A motion model with its noise: ``sigma_u`` per control (white per step), ``sigma_q`` (Q)."""
+
+    model: str
+    wheelbase: float
+    sigma_u: tuple[float, float]
+    sigma_q: tuple[float, float, float] = (0.0, 0.0, 0.0)
+
+    def heading_rates(self, controls: np.ndarray) -> np.ndarray:
+        """``dphi/dt`` per step."""
+        if self.model == "bicycle":
+            return controls[:, 0] * np.sin(controls[:, 1]) / self.wheelbase
+        return controls[:, 1]
+
+    def integrate(self, start: np.ndarray, controls: np.ndarray, dt: np.ndarray) -> np.ndarray:
+        """Poses ``(K+1, 3)`` from ``start`` through ``controls (K, 2)`` over steps ``dt (K,)``."""
+        dt = np.broadcast_to(np.asarray(dt, float), (len(controls),))
+        phi = start[2] + np.concatenate([[0.0], np.cumsum(dt * self.heading_rates(controls))])
+        course = phi[:-1] + (controls[:, 1] if self.model == "bicycle" else 0.0)
+        speed = controls[:, 0] * dt
+        x = start[0] + np.concatenate([[0.0], np.cumsum(speed * np.cos(course))])
+        y = start[1] + np.concatenate([[0.0], np.cumsum(speed * np.sin(course))])
+        return np.stack([x, y, wrap(phi)], axis=1)
+
+    def jacobians(self, poses: np.ndarray, controls: np.ndarray, dt: np.ndarray
+                  ) -> tuple[np.ndarray, np.ndarray]:
+        """``F_R (K, 3, 3)`` and ``F_U (K, 3, 2)`` of (8) at ``poses (K, 3)`` (the step's start)."""
+        k = len(controls)
+        dt = np.broadcast_to(np.asarray(dt, float), (k,))
+        v = controls[:, 0]
+        course = poses[:, 2] + (controls[:, 1] if self.model == "bicycle" else 0.0)
+        c, s = np.cos(course), np.sin(course)
+        fr = np.broadcast_to(np.eye(3), (k, 3, 3)).copy()
+        fr[:, 0, 2] = -dt * v * s
+        fr[:, 1, 2] = dt * v * c
+        fu = np.zeros((k, 3, 2))
+        fu[:, 0, 0] = dt * c
+        fu[:, 1, 0] = dt * s
+        if self.model == "bicycle":
+            g = controls[:, 1]
+            fu[:, 0, 1] = -dt * v * s
+            fu[:, 1, 1] = dt * v * c
+            fu[:, 2, 0] = dt * np.sin(g) / self.wheelbase
+            fu[:, 2, 1] = dt * v * np.cos(g) / self.wheelbase
+        else:
+            fu[:, 2, 1] = dt
+        return fr, fu
+
+    def step_noise(self, fu: np.ndarray) -> np.ndarray:
+        """``F_U U F_U' + Q`` per step, ``(K, 3, 3)``."""
+        u = np.diag(np.square(self.sigma_u))
+        return fu @ u @ fu.transpose(0, 2, 1) + np.diag(np.square(self.sigma_q))
+
+    def propagate(self, start: np.ndarray, cov: np.ndarray, controls: np.ndarray, dt: np.ndarray
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Dead reckoning with (8): poses ``(K+1, 3)``, covariances ``(K+1, 3, 3)`` and the
+        product ``Phi = F_R[K-1] ... F_R[0]`` (what the cross-covariances need)."""
+        poses = self.integrate(start, controls, dt)
+        fr, fu = self.jacobians(poses[:-1], controls, dt)
+        noise = self.step_noise(fu)
+        covs = np.empty((len(poses), 3, 3))
+        covs[0] = cov
+        p = cov
+        for k in range(len(controls)):
+            f = fr[k]
+            p = f @ p @ f.T + noise[k]
+            covs[k + 1] = p
+        # every F_R is I plus a heading column, so their product adds those columns up
+        phi = np.eye(3)
+        phi[:2, 2] = fr[:, :2, 2].sum(axis=0)
+        return poses, covs, phi
