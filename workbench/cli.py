@@ -2,8 +2,14 @@
 
 from __future__ import annotations
 
-import json
 import os
+
+# The estimators multiply small matrices: BLAS threads only add overhead, and Monte Carlo
+# runs already use both cores. Set before numpy is first imported.
+for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
+
+import json
 import shutil
 import subprocess
 import sys
@@ -147,6 +153,110 @@ def sea(
         estimators=tuple(e.strip() for e in estimators.split(",") if e.strip()),
     )
     run_sea(cfg, out, force, metrics, spawn, serve, jobs)
+
+
+def run_omni(cfg, out: Path | None, force: bool, metrics_path: Path | None, spawn: bool,
+             serve: bool, jobs: int | None, export_tum: Path | None = None, quiet: bool = False) -> dict:
+    """Validate, check outputs, run, record; returns the metrics dict."""
+    from workbench.experiments.omni import record, report, run, tum
+    from workbench.recording import stream
+
+    cfg.validate()
+    out = stream.check_output(out or RECORDINGS / "omni.rrd", force)
+    if metrics_path is not None:
+        metrics_path = stream.check_plain_output(metrics_path, force, "metrics file")
+    if export_tum is not None:
+        for name in ("truth", *cfg.estimators):
+            stream.check_plain_output(Path(export_tum) / f"{name}.tum", force, "TUM trajectory")
+    t0 = time.perf_counter()
+    bar, task = _progress(cfg.runs, f"omni {cfg.scenario}")
+    with bar:
+        first = run.run_once(cfg, 0, trace=True)
+        runs = run.monte_carlo(cfg, first=first, jobs=jobs, progress=lambda n: bar.advance(task, n))
+    stats = run.statistics(cfg, runs, first.data.label)
+    stats["wall_seconds"] = time.perf_counter() - t0
+    table = report.table(stats)
+    d = first.data
+    if d.walls is not None:
+        centre, height = tuple(d.walls.mean(axis=0)), 1.4 * float(d.walls.max() - d.walls.min())
+    else:
+        lo, hi = d.landmarks.min(axis=0), d.landmarks.max(axis=0)
+        centre, height = tuple((lo + hi) / 2), 1.6 * float(max(hi - lo))
+    with stream.recording(out, "omni", cfg.to_json(), cfg.seed,
+                          record.blueprint(list(first.estimates), centre, height), spawn=spawn,
+                          serve=serve) as rec:
+        record.record(rec, first, runs, table)
+    stats["recording"] = str(out)
+    if metrics_path is not None:
+        stream.write_text_atomic(metrics_path, json.dumps(stats, indent=2))
+    if export_tum is not None:
+        trajectories = {"truth": (d.t, d.truth)}
+        for name, est in first.estimates.items():
+            trajectories[name] = (d.t[est.steps], est.pose)
+        stats["tum"] = [str(p) for p in tum.export(export_tum, trajectories, force)]
+    if not quiet:
+        typer.echo(table)
+        typer.echo(f"\nrecording: {out}" + (f"\nmetrics:   {metrics_path}" if metrics_path else "")
+                   + (f"\nTUM:       {export_tum}/" if export_tum else "")
+                   + f"\n{cfg.runs} run(s) in {stats['wall_seconds']:.1f} s")
+    return stats
+
+
+@app.command()
+@friendly
+def omni(
+    scenario: str = typer.Option("paper", help="paper | mrclam"),
+    seed: int = typer.Option(0, help="Seed of every random draw."),
+    runs: int = typer.Option(1, help="Monte Carlo runs (run 0 is recorded in full; mrclam: 1)."),
+    out: Path = typer.Option(None, help="Recording path [default: recordings/omni.rrd]."),
+    force: bool = typer.Option(False, help="Overwrite existing outputs."),
+    metrics: Path = typer.Option(None, help="Write the metrics JSON here."),
+    spawn: bool = typer.Option(False, help="Also stream to a spawned native viewer."),
+    serve: bool = typer.Option(False, help="Also serve the stream over gRPC."),
+    jobs: int = typer.Option(None, help="Processes for Monte Carlo runs [default: up to 2]."),
+    estimators: str = typer.Option("odometry,ekf-paper,ekf,isam2,gtsam-batch",
+                                   help="Comma-separated estimators to run."),
+    export_tum: Path = typer.Option(None, help="Write run 0's trajectories in TUM format into this folder."),
+    duration: float = typer.Option(None, help="paper: run length, s [500]."),
+    dt: float = typer.Option(None, help="paper: odometry step, s [0.025]."),
+    speed: float = typer.Option(None, help="paper: vehicle speed, m/s [3]."),
+    wheelbase: float = typer.Option(None, help="paper: vehicle length L of the bicycle model, m [4]."),
+    bearing_rate: float = typer.Option(None, help="paper: bearings per second [5]."),
+    wall_lines: int = typer.Option(None, help="paper: vertical lines on the walls [24]."),
+    pillars: int = typer.Option(None, help="paper: pillars inside the route [8]."),
+    fov: float = typer.Option(None, help="Camera field of view, deg [paper 360; mrclam 70]."),
+    max_range: float = typer.Option(None, help="Longest sighting, m [paper 30; mrclam 6 (drawing only)]."),
+    sigma_v: float = typer.Option(None, help="Odometer speed noise per step, m/s [0.1]."),
+    sigma_gamma: float = typer.Option(None, help="paper: steering noise per step, deg [3]."),
+    sigma_w: float = typer.Option(None, help="mrclam: yaw-rate noise per step, deg/s."),
+    sigma_q: float = typer.Option(None, help="Extra process noise Q per step and axis (m, rad) [0]."),
+    sigma_bearing: float = typer.Option(None, help="Bearing noise, deg [1]."),
+    skew_gate: float = typer.Option(None, help="Initialise a landmark when |skewness| < this [0.3]."),
+    min_parallax: float = typer.Option(None, help="... and its rays' parallax is at least this, deg [2]."),
+    drop_after: float = typer.Option(None, help="Forget a pending landmark unseen this long, s [1]."),
+    kappa: float = typer.Option(None, help="UT kappa (>= 0 keeps the weights non-negative) [1]."),
+    nis_gate: float = typer.Option(None, help="EKF chi-square gate probability per bearing (0 = off)."),
+    graph_parallax: float = typer.Option(None, help="GTSAM: insert a landmark at this parallax, deg [5]."),
+    relin_threshold: float = typer.Option(None, help="iSAM2 relinearisation threshold [0.1]."),
+    settle: float = typer.Option(None, help="Errors count from this time on, s [paper 80; mrclam 0]."),
+    data: Path = typer.Option(None, help="mrclam: the dataset folder [default: <data root>/mrclam6]."),
+    robot: int = typer.Option(None, help="mrclam: the robot, 1..5 where the folder has it [1]."),
+    start_time: float = typer.Option(None, help="mrclam: start this many seconds into the log."),
+    end_time: float = typer.Option(None, help="mrclam: end this many seconds into the log."),
+) -> None:
+    """Paper 000: odometer + hemispherical camera; bearing-only EKF-SLAM against GTSAM."""
+    from workbench.experiments.omni.config import make_config
+
+    cfg = make_config(
+        scenario, seed=seed, runs=runs, duration=duration, dt=dt, speed=speed, wheelbase=wheelbase,
+        bearing_rate=bearing_rate, wall_lines=wall_lines, pillars=pillars, fov_deg=fov, max_range=max_range,
+        sigma_v=sigma_v, sigma_gamma_deg=sigma_gamma, sigma_w_deg=sigma_w, sigma_q=sigma_q,
+        sigma_bearing_deg=sigma_bearing, skew_gate=skew_gate, min_parallax_deg=min_parallax,
+        drop_after=drop_after, kappa=kappa, nis_gate=nis_gate, graph_parallax_deg=graph_parallax,
+        relin_threshold=relin_threshold, settle=settle, data=data, robot=robot, start_time=start_time,
+        end_time=end_time, estimators=tuple(e.strip() for e in estimators.split(",") if e.strip()),
+    )
+    run_omni(cfg, out, force, metrics, spawn, serve, jobs, export_tum)
 
 
 @app.command()

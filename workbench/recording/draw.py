@@ -13,6 +13,7 @@ PALETTE = {
     "truth": (230, 230, 230), "observer": (80, 160, 255), "geometric": (255, 170, 0),
     "rls": (60, 200, 90), "window-rls": (0, 210, 200), "ekf": (230, 70, 70),
     "gtsam": (190, 90, 240), "isam2": (255, 110, 200), "measured": (140, 140, 140),
+    "odometry": (150, 150, 150), "ekf-paper": (255, 170, 0), "gtsam-batch": (190, 90, 240),
 }
 
 
@@ -112,4 +113,63 @@ def covariance_ellipses(rec: rr.RecordingStream, path: str, timeline: str, t: np
     rec.send_columns(path, indexes=[times(timeline, t[ok])],
                      columns=rr.Ellipsoids3D.columns(centers=_xyz(centers[ok]), half_sizes=half_sizes,
                                                      quaternions=quats))
+    return int(ok.sum())
+
+
+def _ellipse_geometry(cov: np.ndarray, n_sigma: float) -> tuple[np.ndarray, np.ndarray]:
+    """Half sizes ``(M, 3)`` and z-rotations as quaternions ``(M, 4)`` of 2D covariances ``(M, 2, 2)``."""
+    vals, vecs = np.linalg.eigh(cov)
+    half = n_sigma * np.sqrt(np.clip(vals, 0.0, None))
+    angle = np.arctan2(vecs[:, 1, 1], vecs[:, 0, 1])
+    quats = np.stack([np.zeros_like(angle), np.zeros_like(angle), np.sin(angle / 2), np.cos(angle / 2)], axis=1)
+    return np.stack([half[:, 1], half[:, 0], np.full(len(half), 0.02)], axis=1), quats
+
+
+def point_sets(rec: rr.RecordingStream, path: str, timeline: str, t: np.ndarray, xy: np.ndarray,
+               rgb, radius: float = 0.3, z: float = 0.0) -> int:
+    """A set of points per step, ``xy (T, N, 2)``; NaN points left out (an empty set clears)."""
+    ok = np.isfinite(xy).all(axis=2)
+    rec.log(path, rr.Points3D.from_fields(colors=[rgb], radii=[radius]), static=True)
+    pts = _xyz(xy[ok], z) if ok.any() else np.zeros((0, 3))
+    rec.send_columns(path, indexes=[times(timeline, t)],
+                     columns=rr.Points3D.columns(positions=pts).partition(ok.sum(axis=1)))
+    return len(t)
+
+
+def ellipse_sets(rec: rr.RecordingStream, path: str, timeline: str, t: np.ndarray, centers: np.ndarray,
+                 cov: np.ndarray, rgb, n_sigma: float = 2.4477) -> int:
+    """A set of covariance ellipses per step: ``centers (T, N, 2)``, ``cov (T, N, 2, 2)`` (95 %)."""
+    ok = np.isfinite(centers).all(axis=2) & np.isfinite(cov).all(axis=(2, 3))
+    rec.log(path, rr.Ellipsoids3D.from_fields(colors=[rgb], fill_mode=rr.components.FillMode.MajorWireframe),
+            static=True)
+    if ok.any():
+        half, quats = _ellipse_geometry(cov[ok], n_sigma)
+        cols = rr.Ellipsoids3D.columns(centers=_xyz(centers[ok]), half_sizes=half, quaternions=quats)
+    else:
+        cols = rr.Ellipsoids3D.columns(centers=np.zeros((0, 3)), half_sizes=np.zeros((0, 3)),
+                                       quaternions=np.zeros((0, 4)))
+    rec.send_columns(path, indexes=[times(timeline, t)], columns=cols.partition(ok.sum(axis=1)))
+    return len(t)
+
+
+def segment_sets(rec: rr.RecordingStream, path: str, timeline: str, t: np.ndarray, counts: np.ndarray,
+                 start: np.ndarray, end: np.ndarray, rgb, radius: float = 0.05) -> int:
+    """``counts[i]`` segments at ``t[i]``; ``start``/``end`` ``(sum(counts), 2)`` (e.g. bearing rays)."""
+    rec.log(path, rr.LineStrips3D.from_fields(colors=[rgb], radii=[radius]), static=True)
+    strips = np.stack([_xyz(start), _xyz(end)], axis=1)
+    rec.send_columns(path, indexes=[times(timeline, t)],
+                     columns=rr.LineStrips3D.columns(strips=list(strips)).partition(np.asarray(counts)))
+    return len(t)
+
+
+def poses(rec: rr.RecordingStream, path: str, timeline: str, t: np.ndarray, pose: np.ndarray, rgb,
+          length: float = 2.0) -> int:
+    """A vehicle per step: an arrow from ``(x, y)`` along the heading ``pose (T, 3)``."""
+    ok = np.isfinite(pose).all(axis=1)
+    p = pose[ok]
+    rec.log(path, rr.Arrows3D.from_fields(colors=[rgb], radii=[0.15 * length / 2]), static=True)
+    if ok.any():
+        vec = np.stack([length * np.cos(p[:, 2]), length * np.sin(p[:, 2]), np.zeros(len(p))], axis=1)
+        rec.send_columns(path, indexes=[times(timeline, t[ok])],
+                         columns=rr.Arrows3D.columns(origins=_xyz(p[:, :2]), vectors=vec))
     return int(ok.sum())

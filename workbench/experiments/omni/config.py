@@ -56,6 +56,7 @@ class OmniConfig:
     data: Path | None = None
     robot: int = 1
     sigma_w_deg: float = 5.0
+    noise_per_second: bool = False
     start_time: float | None = None
     end_time: float | None = None
     estimators: tuple[str, ...] = field(default=ESTIMATORS)
@@ -87,7 +88,8 @@ class OmniConfig:
         require(0.0 < self.inset < self.room / 2, f"--inset must be in (0, room/2) (got {self.inset})")
         require(0.0 < self.fov_deg <= 360.0, f"--fov must be in (0, 360] deg (got {self.fov_deg})")
         require(0.0 < self.skew_gate <= 2.0, f"--skew-gate must be in (0, 2] (got {self.skew_gate})")
-        require(0.0 <= self.min_parallax_deg < 90.0, f"--min-parallax must be in [0, 90) deg (got {self.min_parallax_deg})")
+        require(0.0 <= self.min_parallax_deg < 90.0,
+                f"--min-parallax must be in [0, 90) deg (got {self.min_parallax_deg})")
         require(0.0 < self.graph_parallax_deg < 90.0,
                 f"--graph-parallax must be in (0, 90) deg (got {self.graph_parallax_deg})")
         require(0.0 <= self.nis_gate < 1.0, f"--nis-gate must be a probability in [0, 1) (got {self.nis_gate})")
@@ -106,3 +108,19 @@ class OmniConfig:
         out["data"] = str(self.data) if self.data is not None else None
         out["estimators"] = list(self.estimators)
         return out
+
+
+SCENARIO_DEFAULTS: dict[str, dict] = {
+    "paper": {},
+    # MRCLAM: a forward camera (bearings span about +-33 deg, lines up to a few metres away),
+    # odometry at ~67 Hz that behaves like commanded velocity, landmarks seen intermittently.
+    "mrclam": {"fov_deg": 70.0, "max_range": 6.0, "settle": 0.0, "graph_parallax_deg": 15.0},
+}
+
+
+def make_config(scenario: str, **given) -> OmniConfig:
+    """A config with the scenario's defaults under what the user gave (``None`` = not given)."""
+    require(scenario in SCENARIOS, f"unknown scenario {scenario!r}; one of {', '.join(SCENARIOS)}")
+    values = dict(SCENARIO_DEFAULTS[scenario])
+    values.update({k: v for k, v in given.items() if v is not None})
+    return OmniConfig(scenario=scenario, **values)

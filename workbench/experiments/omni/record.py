@@ -1,0 +1,154 @@
+"""The omni recording: one top-down map per estimator side by side, and the curves.
+
+Entity layout (timeline ``time``, seconds of the recorded run 0):
+
+* ``world/{walls,landmarks}`` (static), ``world/truth/{path,vehicle}``;
+* ``map/<estimator>/{path,vehicle,pose_ellipse,landmarks,landmark_ellipses,rays}`` and, for
+  the filters, ``map/<estimator>/pending`` (the UT sigma images of each initialisation try);
+* ``errors/{position,heading}/<estimator>``, ``sigma/{position,heading}/<estimator>``,
+  ``nees/<estimator>`` with ``nees/band_{lo,hi}`` (one run, 3 dof, 95 %);
+* ``monte_carlo/{position,heading,nees}/<estimator>`` over all runs, with the band for that
+  many runs; ``summary`` (the results table).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import rerun as rr
+import rerun.blueprint as rrb
+
+from workbench.estimation import metrics
+from workbench.experiments.omni.run import RunResult, RunSummary, mc_curves, on_grid, pose_errors, pose_nees
+from workbench.recording import draw
+
+TL = "time"
+
+
+def _map_view(name: str, centre: tuple[float, float], height: float) -> rrb.Spatial3DView:
+    return rrb.Spatial3DView(
+        origin="/", contents=["/world/**", f"/map/{name}/**"], name=f"{name} (top-down, m)",
+        eye_controls=rrb.EyeControls3D(position=(centre[0], centre[1] - 1e-3, height),
+                                       look_target=(centre[0], centre[1], 0.0), eye_up=(0.0, 0.0, 1.0)),
+    )
+
+
+def blueprint(names: list[str], centre: tuple[float, float] = (40.0, 40.0), height: float = 110.0
+              ) -> rrb.Blueprint:
+    """Maps in a grid on the left; errors, sigmas, NEES and the Monte Carlo curves on the right."""
+    maps = rrb.Grid(*[_map_view(n, centre, height) for n in names])
+    one_run = rrb.Vertical(
+        rrb.TimeSeriesView(origin="/errors/position", name="position error (m)"),
+        rrb.TimeSeriesView(origin="/errors/heading", name="heading error (deg)"),
+        rrb.TimeSeriesView(origin="/nees", name="pose NEES (3 dof), 95 % band"),
+        name="run 0",
+    )
+    sigmas = rrb.Vertical(
+        rrb.TimeSeriesView(origin="/sigma/position", name="own sigma, position (m)"),
+        rrb.TimeSeriesView(origin="/sigma/heading", name="own sigma, heading (deg)"),
+        name="sigmas",
+    )
+    mc = rrb.Vertical(
+        rrb.TimeSeriesView(origin="/monte_carlo/position", name="RMS position error over runs (m)"),
+        rrb.TimeSeriesView(origin="/monte_carlo/heading", name="RMS heading error over runs (deg)"),
+        rrb.TimeSeriesView(origin="/monte_carlo/nees", name="ANEES over runs, 95 % band"),
+        name="Monte Carlo",
+    )
+    return rrb.Blueprint(
+        rrb.Horizontal(maps, rrb.Tabs(one_run, sigmas, mc, rrb.TextDocumentView(origin="/summary", name="results")),
+                       column_shares=[3, 2]),
+        collapse_panels=True,
+    )
+
+
+def _rays(first: RunResult, pose: np.ndarray, length: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Bearing rays drawn from an estimate's pose at each epoch: times, counts, starts, ends."""
+    d = first.data
+    epochs = d.epochs()
+    where = {int(s): i for i, s in enumerate(first.grid)}
+    t, counts, starts, ends = [], [], [], []
+    for step, idx in epochs:
+        p = pose[where[step]] if step in where else np.full(3, np.nan)
+        if not np.isfinite(p).all():
+            continue
+        a = p[2] + d.meas_bearing[idx]
+        t.append(d.t[step])
+        counts.append(len(idx))
+        starts.append(np.repeat(p[None, :2], len(idx), axis=0))
+        ends.append(p[:2] + length * np.stack([np.cos(a), np.sin(a)], axis=1))
+    if not t:
+        return np.zeros(0), np.zeros(0, int), np.zeros((0, 2)), np.zeros((0, 2))
+    return np.array(t), np.array(counts), np.concatenate(starts), np.concatenate(ends)
+
+
+def _pending(first: RunResult, attempts: list) -> tuple[np.ndarray, np.ndarray]:
+    """Sigma images of the initialisation tries, grouped per step: times and ``(S, P, 2)``."""
+    by_step: dict[int, list[np.ndarray]] = {}
+    for step, _lm, points, _ok in attempts:
+        by_step.setdefault(int(step), []).append(points)
+    steps = sorted(by_step)
+    width = max((sum(len(p) for p in by_step[s]) for s in steps), default=0)
+    xy = np.full((len(steps), width, 2), np.nan)
+    for i, s in enumerate(steps):
+        pts = np.concatenate(by_step[s])
+        xy[i, :len(pts)] = pts
+    return first.data.t[np.array(steps, int)] if steps else np.zeros(0), xy
+
+
+def record(rec: rr.RecordingStream, first: RunResult, runs: list[RunSummary], table_md: str) -> None:
+    """Log run 0 in full, the Monte Carlo curves over all runs, and the results table."""
+    d, grid = first.data, first.grid
+    t = d.t[grid]
+    truth = d.truth[grid]
+    rec.log("/world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
+    if d.walls is not None:
+        rec.log("/world/walls", rr.LineStrips3D([np.c_[d.walls, np.zeros(len(d.walls))]],
+                                                colors=[(120, 120, 120)], radii=[0.1]), static=True)
+    rec.log("/world/landmarks", rr.Points3D(np.c_[d.landmarks, np.zeros(len(d.landmarks))],
+                                            colors=[draw.color("truth")], radii=[0.25],
+                                            labels=[str(i) for i in d.landmark_ids], show_labels=False),
+            static=True)
+    draw.track(rec, "/world/truth/path", truth[:, :2], draw.color("truth"), 0.06)
+    draw.poses(rec, "/world/truth/vehicle", TL, t, truth, draw.color("truth"))
+    ray_len = float(min(d.max_range, 30.0)) if np.isfinite(d.max_range) else 10.0
+    band1 = metrics.chi2_band(3, 1)
+    for name, est in first.estimates.items():
+        rgb = draw.color(name)
+        base = f"/map/{name}"
+        pose, cov = on_grid(est, grid)
+        draw.track(rec, f"{base}/path", pose[:, :2], rgb, 0.08)
+        draw.poses(rec, f"{base}/vehicle", TL, t, pose, rgb)
+        draw.covariance_ellipses(rec, f"{base}/pose_ellipse", TL, t, pose[:, :2], cov[:, :2, :2], rgb)
+        if len(est.map_steps):
+            draw.point_sets(rec, f"{base}/landmarks", TL, d.t[est.map_steps], est.map_mean, rgb, 0.35, 0.05)
+            if est.map_cov is not None:
+                draw.ellipse_sets(rec, f"{base}/landmark_ellipses", TL, d.t[est.map_steps], est.map_mean,
+                                  est.map_cov, rgb)
+        rt, counts, starts, ends = _rays(first, pose, ray_len)
+        if len(rt):
+            draw.segment_sets(rec, f"{base}/rays", TL, rt, counts, starts, ends, (255, 255, 120), 0.03)
+        if est.attempts:
+            pt, clouds = _pending(first, est.attempts)
+            draw.point_sets(rec, f"{base}/pending", TL, pt, clouds, (255, 140, 0), 0.12, 0.1)
+        e = pose_errors(truth, pose)
+        draw.scalars(rec, f"/errors/position/{name}", TL, t, np.hypot(e[:, 0], e[:, 1]), name, rgb)
+        draw.scalars(rec, f"/errors/heading/{name}", TL, t, np.degrees(e[:, 2]), name, rgb)
+        var = np.clip(np.diagonal(cov, axis1=1, axis2=2), 0.0, None)
+        draw.scalars(rec, f"/sigma/position/{name}", TL, t, np.sqrt(var[:, 0] + var[:, 1]), name, rgb)
+        draw.scalars(rec, f"/sigma/heading/{name}", TL, t, np.degrees(np.sqrt(var[:, 2])),
+                     name, rgb)
+        draw.scalars(rec, f"/nees/{name}", TL, t, pose_nees(e, cov), name, rgb)
+    grey = (150, 150, 150)
+    draw.scalars(rec, "/nees/band_lo", TL, t, np.full_like(t, band1[0]), "95 % low", grey, 1.0)
+    draw.scalars(rec, "/nees/band_hi", TL, t, np.full_like(t, band1[1]), "95 % high", grey, 1.0)
+
+    curves = mc_curves(runs)
+    mt = runs[0].t
+    for name, c in curves.items():
+        rgb = draw.color(name)
+        draw.scalars(rec, f"/monte_carlo/position/{name}", TL, mt, c["position"], name, rgb)
+        draw.scalars(rec, f"/monte_carlo/heading/{name}", TL, mt, c["heading"], name, rgb)
+        draw.scalars(rec, f"/monte_carlo/nees/{name}", TL, mt, c["nees"], name, rgb)
+    lo, hi = metrics.chi2_band(3, len(runs))
+    draw.scalars(rec, "/monte_carlo/nees/band_lo", TL, mt, np.full_like(mt, lo), "95 % low", grey, 1.0)
+    draw.scalars(rec, "/monte_carlo/nees/band_hi", TL, mt, np.full_like(mt, hi), "95 % high", grey, 1.0)
+    rec.log("/summary", rr.TextDocument(table_md, media_type=rr.MediaType.MARKDOWN), static=True)

@@ -1,0 +1,42 @@
+"""The omni results table: errors after settling and over the whole run, the map, the
+filter's own sigmas and its consistency, beside the paper's claims."""
+
+from __future__ import annotations
+
+PAPER_CLAIMS = ("paper's claims (simulation): position error < 0.5 m, heading error < 1 deg; "
+                "own standard deviations < 1 m and < 1 deg after settling; odometry drifts without bound")
+
+
+def _f(x: float | None, fmt: str = ".2f") -> str:
+    return "-" if x is None else f"{x:{fmt}}"
+
+
+def table(stats: dict) -> str:
+    """Markdown (also readable as plain text)."""
+    lo, hi = stats["nees_band"]
+    head = ("| estimator | pos rmse m | pos max m | head rmse deg | head max deg | map rmse m | "
+            "sigma x/y max m | sigma head max deg | ANEES | landmarks | init s | s/run |")
+    lines = [f"**omni / {stats['scenario']}** ({stats.get('label', '')}), {stats['runs']} run(s), "
+             f"seed {stats['seed']}; errors after {stats['settle_seconds']:g} s, over all runs; "
+             f"ANEES 95 % band {lo:.2f}-{hi:.2f}", "", head, "|" + "---|" * 12]
+    for name, e in stats["estimators"].items():
+        s = e["sigma"]
+        sig_xy = None if s["x_max"] is None else max(s["x_max"], s["y_max"])
+        lines.append(
+            f"| {name} | {_f(e['rmse']['position'])} | {_f(e['max']['position'])} | {_f(e['rmse']['heading'])} "
+            f"| {_f(e['max']['heading'])} | {_f(e['rmse']['map'])} | {_f(sig_xy)} | {_f(s['heading_max'])} "
+            f"| {_f(e['anees'])} | {e['landmarks_initialised']:.1f} | {_f(e['init_seconds']['median'], '.1f')} "
+            f"| {e['seconds']:.2f} |")
+    lines += ["", "Whole run (including the first lap):"]
+    for name, e in stats["estimators"].items():
+        w, m = e["rmse_whole_run"], e["max_whole_run"]
+        bits = [f"position rmse {_f(w['position'])} m, max {_f(m['position'])} m",
+                f"heading rmse {_f(w['heading'])} deg, max {_f(m['heading'])} deg"]
+        if e.get("nees_inside_band") is not None:
+            bits.append(f"mean NEES inside the band at {100 * e['nees_inside_band']:.0f} % of steps")
+        if e["failures"]:
+            bits.append(f"{e['failures']} rejected update(s)")
+        lines.append(f"- {name}: " + "; ".join(bits))
+    if stats["scenario"] == "paper":
+        lines += ["", PAPER_CLAIMS]
+    return "\n".join(lines)
