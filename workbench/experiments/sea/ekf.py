@@ -12,7 +12,6 @@ velocity as zero with ``prior_speed`` per axis. An optional chi-square gate
 from __future__ import annotations
 
 import numpy as np
-from scipy import stats
 
 from workbench.estimation import kalman
 from workbench.estimation.angles import wrap
@@ -42,7 +41,9 @@ def estimate(data: SeaData, cfg: SeaConfig) -> Estimate:
     T, dt = data.steps, data.dt
     F = kalman.cv_transition(dt)
     Q = kalman.cv_noise_discrete(dt, data.sigma_acc)
-    gate = stats.chi2.ppf(cfg.ekf_gate, 2) if cfg.ekf_gate > 0 else np.inf
+    gated = cfg.ekf_gate > 0
+    # the chi-square quantile of 2 degrees of freedom in closed form: -2 ln(1 - p)
+    gate = -2.0 * np.log1p(-cfg.ekf_gate)
     X = np.full((T, 4), np.nan)
     Ps = np.full((T, 4, 4), np.nan)
     x = P = None
@@ -55,14 +56,14 @@ def estimate(data: SeaData, cfg: SeaConfig) -> Estimate:
             else:
                 o = data.observer_meas[k]
                 h = np.array(geometry.angles(x[:2], o, data.course[k], data.height))
+                J = geometry.angle_jacobian(x[:2], o, data.height)
                 H = np.zeros((2, 4))
-                H[:, :2] = geometry.angle_jacobian(x[:2], o, data.height)
+                H[:, :2] = J
                 R = geometry.effective_noise(x[:2], o, data.height, data.sigma_alpha,
-                                             data.sigma_beta, data.sigma_observer)
-                z = np.array([data.alpha_meas[k], data.beta_meas[k]])
-                nu = np.array([wrap(z[0] - h[0]), z[1] - h[1]])
-                S = H @ P @ H.T + R
-                if nu @ np.linalg.solve(S, nu) <= gate:
+                                             data.sigma_beta, data.sigma_observer, jacobian=J)
+                nu = np.array([wrap(data.alpha_meas[k] - h[0]), data.beta_meas[k] - h[1]])
+                S = H @ P @ H.T + R if gated else None
+                if not gated or nu @ np.linalg.solve(S, nu) <= gate:
                     x, P, _ = kalman.update(x, P, nu, H, R)
         if x is not None:
             X[k], Ps[k] = x, P

@@ -52,15 +52,17 @@ def angle_jacobian(target_xy: np.ndarray, observer_xy: np.ndarray, height: float
 
 
 def effective_noise(target_xy: np.ndarray, observer_xy: np.ndarray, height: float,
-                    sigma_alpha: float, sigma_beta: float, sigma_observer: float) -> np.ndarray:
+                    sigma_alpha: float, sigma_beta: float, sigma_observer: float,
+                    jacobian: np.ndarray | None = None) -> np.ndarray:
     """Angle-noise covariance with the observer's position noise folded in, ``(..., 2, 2)``.
 
     The estimators know the observer only through its measured position (1 m per axis in
     Table 1). Linearising (1)-(2) in the observer position gives
     ``R = diag(sa^2, sb^2) + sigma_o^2 J J'``: at 700 m the observer's 1 m costs 4.9' of
-    azimuth, more than the camera's 0.88'.
+    azimuth, more than the camera's 0.88'. ``jacobian``, if given, is
+    :func:`angle_jacobian` at these arguments (saves computing it twice).
     """
-    J = angle_jacobian(target_xy, observer_xy, height)
+    J = angle_jacobian(target_xy, observer_xy, height) if jacobian is None else jacobian
     R = sigma_observer**2 * J @ np.swapaxes(J, -1, -2)
     R[..., 0, 0] += sigma_alpha**2
     R[..., 1, 1] += sigma_beta**2
