@@ -5,6 +5,8 @@ from __future__ import annotations
 from collections import Counter
 from pathlib import Path
 
+import numpy as np
+import pyarrow as pa
 from rerun.chunk import RrdReader
 
 
@@ -29,3 +31,24 @@ def properties(path: Path, name: str = "workbench") -> dict:
                 key = field.name.split(":")[-1]
                 out[key] = value[0] if isinstance(value, list) and len(value) == 1 else value
     return out
+
+
+def series(path: Path, entity: str, timeline: str = "time") -> tuple[np.ndarray, np.ndarray]:
+    """A scalar time series back from a recording: times (s) and values, sorted by time."""
+    ts, vs = [], []
+    for chunk in RrdReader(str(path)).store().stream():
+        if str(chunk.entity_path) != entity or chunk.is_static:
+            continue
+        batch = chunk.to_record_batch()
+        names = batch.schema.names
+        if timeline not in names or "Scalars:scalars" not in names:
+            continue
+        t = batch.column(timeline).cast(pa.int64()).to_numpy(zero_copy_only=False) / 1e9
+        v = np.array([x[0] if x else np.nan for x in batch.column("Scalars:scalars").to_pylist()], float)
+        ts.append(t)
+        vs.append(v)
+    if not ts:
+        raise KeyError(f"no scalar series {entity!r} on timeline {timeline!r} in {path}")
+    t, v = np.concatenate(ts), np.concatenate(vs)
+    order = np.argsort(t, kind="stable")
+    return t[order], v[order]

@@ -1,0 +1,183 @@
+"""``workbench omni`` end to end: the recording read back, the metrics file, TUM export,
+determinism, and bad input (one line, exit code 2, nothing written)."""
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from workbench.experiments.omni import tum
+from workbench.recording import readback
+
+ALL = ("odometry", "ekf-paper", "ekf", "isam2", "gtsam-batch")
+DATA = Path(os.environ.get("WORKBENCH_DATA", Path(__file__).resolve().parents[2] / "shared" / "data"))
+SHORT = ("--duration", "40")
+
+
+def wb(*args):
+    return subprocess.run([sys.executable, "-m", "workbench", *args], capture_output=True, text=True, timeout=900)
+
+
+@pytest.fixture(scope="module")
+def recorded(tmp_path_factory):
+    d = tmp_path_factory.mktemp("omni")
+    out, m = d / "omni.rrd", d / "m.json"
+    r = wb("omni", "--runs", "2", "--seed", "5", "--out", str(out), "--metrics", str(m), "--export-tum",
+           str(d / "tum"), *SHORT)
+    assert r.returncode == 0, r.stderr
+    return d, out, json.loads(m.read_text())
+
+
+def test_recording_has_every_estimator(recorded):
+    _, out, stats = recorded
+    rows = readback.row_counts(out)
+    G = stats["grid_steps"]
+    assert G == 201  # 40 s of bearings at 5 Hz, plus the start
+    assert rows["/world/truth/vehicle"] == G
+    for name in ALL:
+        for path in ("vehicle", "pose_ellipse"):
+            assert rows[f"/map/{name}/{path}"] >= G - 1, (name, path)  # the start pose has no ellipse
+        assert rows[f"/errors/position/{name}"] == G and rows[f"/errors/heading/{name}"] == G
+        assert rows[f"/monte_carlo/position/{name}"] == G
+        assert rows[f"/map/{name}/rays"] == 200  # every bearing epoch
+    for name in ("ekf", "ekf-paper"):
+        assert rows[f"/map/{name}/landmarks"] == 200 and rows[f"/map/{name}/landmark_ellipses"] == 200
+        assert rows[f"/map/{name}/pending"] > 0
+        assert rows[f"/sigma/position/{name}"] == G and rows[f"/nees/{name}"] >= G - 2
+    assert rows["/map/isam2/landmarks"] > 10 and rows["/map/gtsam-batch/landmarks"] == 1
+    props = readback.properties(out)
+    assert props["experiment"] == "omni" and int(props["seed"]) == 5
+    assert json.loads(props["config"])["runs"] == 2
+
+
+def test_metrics_file_shape(recorded):
+    _, _, stats = recorded
+    assert stats["experiment"] == "omni" and stats["scenario"] == "paper" and stats["runs"] == 2
+    for name in ALL:
+        e = stats["estimators"][name]
+        assert set(e["rmse"]) == {"position", "heading", "map"} and e["max"]["position"] >= e["rmse"]["position"]
+        assert "anees" in e and e["seconds"] > 0
+    assert stats["estimators"]["odometry"]["rmse"]["map"] is None
+    assert stats["estimators"]["ekf"]["landmarks_initialised"] >= 20
+
+
+def test_tum_export_matches_the_metrics(recorded):
+    d, _, stats = recorded
+    t_truth, truth = tum.read_tum(d / "tum" / "truth.tum")
+    t_ekf, ekf = tum.read_tum(d / "tum" / "ekf.tum")
+    assert len(t_truth) == 1601 and len(t_ekf) == 1601  # every 0.025 s step
+    assert set(p.name for p in (d / "tum").iterdir()) == {f"{n}.tum" for n in ("truth", *ALL)}
+    grid = np.isin(np.round(t_ekf / 0.2, 6) % 1, [0.0])
+    err = np.hypot(*(truth[:, :2] - ekf[:, :2]).T)[grid & (t_ekf >= stats["settle_seconds"])]
+    assert np.isfinite(err).all()
+
+
+def test_same_seed_same_numbers(tmp_path, recorded):
+    _, _, stats = recorded
+    m = tmp_path / "m.json"
+    r = wb("omni", "--runs", "2", "--seed", "5", "--out", str(tmp_path / "a.rrd"), "--metrics", str(m), *SHORT,
+           "--estimators", "odometry,ekf,gtsam-batch")
+    assert r.returncode == 0, r.stderr
+    again = json.loads(m.read_text())
+    for name in ("odometry", "ekf", "gtsam-batch"):
+        assert again["estimators"][name]["rmse"] == stats["estimators"][name]["rmse"]
+
+
+def _mrclam_copy(tmp_path, mutate=None) -> Path:
+    """A tiny MRCLAM folder: robot 1 drives a straight line past two landmarks."""
+    d = tmp_path / "mr"
+    d.mkdir()
+    head = "# x\n# x\n# x\n# x\n"
+    t = np.arange(0.0, 20.0, 0.02)
+    (d / "Robot1_Odometry.dat").write_text(head + "".join(f"{x:.3f} 0.2 0.0\n" for x in t))
+    truth = "".join(f"{x:.3f} {0.2 * x:.4f} 0.0 0.0\n" for x in t)
+    (d / "Robot1_Groundtruth.dat").write_text(head + truth)
+    lms = {6: (2.0, 1.5), 7: (3.0, -1.5)}
+    rows = []
+    for x in t[::10]:
+        for s, (lx, ly) in lms.items():
+            b = np.arctan2(ly, lx - 0.2 * x)
+            if abs(b) < 0.6:
+                rows.append(f"{x:.3f} {s + 10} 1.0 {b:.5f}\n")
+    (d / "Robot1_Measurement.dat").write_text(head + "".join(rows))
+    (d / "Landmark_Groundtruth.dat").write_text(head + "".join(f"{s} {x} {y} 0.001 0.001\n"
+                                                               for s, (x, y) in lms.items()))
+    (d / "Barcodes.dat").write_text(head + "1 5\n6 16\n7 17\n")
+    if mutate:
+        mutate(d)
+    return d
+
+
+def test_mrclam_folder_runs_every_estimator(tmp_path):
+    d = _mrclam_copy(tmp_path)
+    m = tmp_path / "m.json"
+    r = wb("omni", "--scenario", "mrclam", "--data", str(d), "--out", str(tmp_path / "r.rrd"), "--metrics", str(m))
+    assert r.returncode == 0, r.stderr
+    stats = json.loads(m.read_text())
+    assert set(stats["estimators"]) == set(ALL)
+    assert stats["estimators"]["odometry"]["rmse"]["position"] < 0.05  # the odometry is exact here
+
+
+def _backwards(d):
+    p = d / "Robot1_Odometry.dat"
+    lines = p.read_text().splitlines(keepends=True)
+    lines[10], lines[11] = lines[11], lines[10]
+    p.write_text("".join(lines))
+
+
+def _few_columns(d):
+    p = d / "Robot1_Measurement.dat"
+    p.write_text("# x\n# x\n# x\n# x\n1.0 16\n")
+
+
+@pytest.mark.parametrize("args,needle", [
+    (["--runs", "0"], "--runs"),
+    (["--sigma-v", "-1"], "non-negative"),
+    (["--sigma-bearing", "-2"], "non-negative"),
+    (["--skew-gate", "5"], "--skew-gate"),
+    (["--nis-gate", "1.5"], "--nis-gate"),
+    (["--min-parallax", "120"], "--min-parallax"),
+    (["--scenario", "nowhere"], "scenario"),
+    (["--estimators", "ekf,magic"], "unknown estimator"),
+    (["--scenario", "mrclam", "--data", "/nonexistent/mrclam"], "nonexistent"),
+    (["--scenario", "mrclam", "--robot", "9", "--data", "MRCLAM"], "robot"),
+    (["--scenario", "mrclam", "--data", "BACKWARDS"], "backwards"),
+    (["--scenario", "mrclam", "--data", "FEWCOLS"], "Robot1_Measurement.dat"),
+])
+def test_bad_input_one_line_exit_2(tmp_path, args, needle):
+    subs = {"MRCLAM": lambda: _mrclam_copy(tmp_path), "BACKWARDS": lambda: _mrclam_copy(tmp_path, _backwards),
+            "FEWCOLS": lambda: _mrclam_copy(tmp_path, _few_columns)}
+    args = [str(subs[a]()) if a in subs else a for a in args]
+    out = tmp_path / "x.rrd"
+    r = wb("omni", "--out", str(out), *args)
+    assert r.returncode == 2, r.stderr
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and needle in lines[0] and "Traceback" not in r.stderr, r.stderr
+    assert not out.exists()
+
+
+def test_existing_output_not_overwritten(tmp_path):
+    out = tmp_path / "keep.rrd"
+    out.write_bytes(b"precious")
+    r = wb("omni", "--out", str(out), "--duration", "5")
+    assert r.returncode == 2 and "--force" in r.stderr
+    assert out.read_bytes() == b"precious"
+
+
+@pytest.mark.skipif(not (DATA / "mrclam6").is_dir(), reason="real MRCLAM data not present")
+@pytest.mark.parametrize("robot", [1, 2])
+def test_real_robots(tmp_path, robot):
+    """The whole log of each robot: every estimator runs; the smoother beats dead reckoning 3x."""
+    m = tmp_path / "m.json"
+    r = wb("omni", "--scenario", "mrclam", "--robot", str(robot), "--out", str(tmp_path / "r.rrd"),
+           "--metrics", str(m))
+    assert r.returncode == 0, r.stderr
+    e = json.loads(m.read_text())["estimators"]
+    odo = e["odometry"]["rmse"]["position"]
+    assert e["gtsam-batch"]["rmse"]["position"] * 3 < odo
+    assert e["ekf"]["rmse"]["position"] < odo  # the EKF does not diverge
+    assert all(e[n]["coverage"] > 0.99 for n in ALL)

@@ -1,0 +1,255 @@
+"""Omni equations against hand-derived cases, noise-free runs against the truth, and the
+filters' consistency over seeded Monte Carlo runs."""
+
+import math
+
+import numpy as np
+import pytest
+
+from workbench.errors import WorkbenchError
+from workbench.estimation import unscented
+from workbench.estimation.angles import wrap
+from workbench.experiments.omni import ekf, graph, run, triangulation, tum
+from workbench.experiments.omni.config import OmniConfig, make_config
+from workbench.experiments.omni.motion import Motion
+from workbench.experiments.omni.scenario import simulate, world
+
+
+def _mu(pi, pj, landmark):
+    """Two poses and the exact bearings (9) from each to ``landmark``."""
+    def bearing(p):
+        return math.atan2(landmark[1] - p[1], landmark[0] - p[0]) - p[2]
+    return np.array([*pi, *pj, bearing(pi), bearing(pj)])
+
+
+# --- (1): triangulation ------------------------------------------------------------------
+
+def test_corrected_triangulation_hits_the_landmark_and_the_printed_one_does_not():
+    rng = np.random.default_rng(3)
+    for _ in range(50):
+        lm = rng.uniform(-20, 20, 2)
+        pi = np.array([*rng.uniform(-20, 20, 2), rng.uniform(-np.pi, np.pi)])
+        pj = np.array([*rng.uniform(-20, 20, 2), rng.uniform(-np.pi, np.pi)])
+        mu = _mu(pi, pj, lm)
+        assert np.allclose(triangulation.triangulate(mu)[0], lm, atol=1e-7)
+        point, si, sj = triangulation.rays(mu)
+        assert np.allclose(point[0], lm, atol=1e-7)
+        assert si[0] > 0 and sj[0] > 0  # the landmark lies ahead along both rays
+    # a hand case: poses at (0, 0) and (10, 0), both heading 0, landmark at (5, 5)
+    mu = _mu((0, 0, 0), (10, 0, 0), (5, 5))
+    assert np.allclose(mu[6:], [np.pi / 4, 3 * np.pi / 4])
+    assert np.allclose(triangulation.triangulate(mu)[0], [5, 5])
+    printed = triangulation.triangulate_printed(_mu((0, 0, 0), (10, 2, 0.3), (4, 7)))[0]
+    assert np.linalg.norm(printed - [4, 7]) > 1.0
+
+
+def test_triangulation_jacobian_matches_a_hand_derivative():
+    # Pose i at the origin looks straight up at (0, 10); pose j at (10, 0) sees it along
+    # (-1, 1). Shifting pose i by dx moves its ray to x = dx, which meets ray j at
+    # (dx, 10 - dx): dL/dx_i = (1, -1). Sliding pose j along its own ray moves nothing.
+    mu = _mu((0, 0, 0), (10, 0, 0), (0, 10))
+    G = triangulation.jacobian(mu)
+    assert G.shape == (2, 8)
+    assert np.allclose(G[:, 0], [1.0, -1.0], atol=1e-5)
+    assert np.allclose(-G[:, 3] + G[:, 4], [0.0, 0.0], atol=1e-5)
+    # turning pose i by d phi turns its ray like a bearing change: d/dphi_i == d/dtheta_i
+    assert np.allclose(G[:, 2], G[:, 6], atol=1e-5)
+
+
+# --- (2)-(5): the unscented transform ----------------------------------------------------
+
+def test_sigma_points_satisfy_conditions_4():
+    rng = np.random.default_rng(1)
+    A = rng.normal(size=(8, 8))
+    P = A @ A.T
+    mu = rng.normal(size=8)
+    for kappa in (0.0, 1.0, 3.0):
+        X, W = unscented.sigma_points(mu, P, kappa)
+        assert X.shape == (17, 8) and (W >= 0).all()
+        assert np.isclose(W.sum(), 1.0)
+        assert np.allclose(W @ X, mu)
+        assert np.allclose((W[:, None] * (X - mu)).T @ (X - mu), P)
+
+
+def test_unscented_transform_is_exact_for_linear_maps_and_hand_derived_for_a_square():
+    rng = np.random.default_rng(2)
+    A = rng.normal(size=(2, 3))
+    P = np.diag([1.0, 4.0, 0.25])
+    mu = np.array([1.0, -2.0, 0.5])
+    out = unscented.transform(lambda x: x @ A.T, mu, P, kappa=1.0)
+    assert np.allclose(out.mean, A @ mu) and np.allclose(out.cov, A @ P @ A.T)
+    assert np.allclose(out.skewness(), 0.0, atol=1e-9)
+    # y = x^2, x ~ N(0, 1): sigma points 0, +-sqrt(1 + k); mean 1, variance k, third moment
+    # k (k - 1), so skewness (k - 1) / sqrt(k); with k = 2 the variance is the true 2.
+    sq = unscented.transform(lambda x: x**2, np.zeros(1), np.eye(1), kappa=2.0)
+    assert np.isclose(sq.mean[0], 1.0) and np.isclose(sq.cov[0, 0], 2.0)
+    assert np.isclose(sq.skewness()[0], 1.0 / math.sqrt(2.0))
+    with pytest.raises(WorkbenchError):
+        unscented.sigma_points(mu, P, kappa=-1.0)
+
+
+def test_gate_accepts_a_wide_baseline_and_rejects_near_parallel_rays():
+    sigma = math.radians(1.0)
+    cov = np.diag([0.01, 0.01, 1e-4, 0.01, 0.01, 1e-4, sigma**2, sigma**2])
+    wide = triangulation.attempt(_mu((0, 0, 0), (10, 0, 0), (5, 8)), cov, 0.3, math.radians(2.0))
+    assert wide.accepted and np.allclose(wide.mean, [5, 8], atol=0.05)
+    narrow = triangulation.attempt(_mu((0, 0, 0), (0.3, 0, 0), (5, 25)), cov, 0.3, math.radians(2.0))
+    assert not narrow.accepted and narrow.reason in ("behind", "parallax", "skewness")
+    # in front of the views only: a landmark behind pose j is never accepted
+    behind = _mu((0, 0, 0), (10, 0, 0), (5, 8))
+    behind[7] += math.pi
+    assert not triangulation.attempt(behind, cov, 0.3, 0.0).accepted
+
+
+# --- (7)-(8): motion models --------------------------------------------------------------
+
+@pytest.mark.parametrize("model", ["bicycle", "unicycle"])
+def test_motion_jacobians_match_finite_differences(model):
+    m = Motion(model, 4.0, (0.1, 0.05))
+    pose = np.array([[1.0, 2.0, 0.7]])
+    u = np.array([[3.0, 0.2]])
+    dt = 0.05
+    fr, fu = m.jacobians(pose, u, dt)
+    h = 1e-6
+
+    def f(p, c):
+        return m.integrate(p, c[None], dt)[-1]
+
+    num_r = np.stack([(f(pose[0] + h * e, u[0]) - f(pose[0] - h * e, u[0])) / (2 * h) for e in np.eye(3)], 1)
+    num_u = np.stack([(f(pose[0], u[0] + h * e) - f(pose[0], u[0] - h * e)) / (2 * h) for e in np.eye(2)], 1)
+    assert np.allclose(fr[0], num_r, atol=1e-6) and np.allclose(fu[0], num_u, atol=1e-6)
+
+
+def test_integrate_is_the_step_by_step_recursion_7():
+    m = Motion("bicycle", 4.0, (0.1, 0.05))
+    rng = np.random.default_rng(5)
+    u = np.column_stack([rng.uniform(1, 3, 50), rng.uniform(-0.3, 0.3, 50)])
+    x = np.array([1.0, -1.0, 0.3])
+    for c in u:
+        x = np.array([x[0] + 0.025 * c[0] * math.cos(x[2] + c[1]), x[1] + 0.025 * c[0] * math.sin(x[2] + c[1]),
+                      x[2] + 0.025 * c[0] * math.sin(c[1]) / 4.0])
+    out = m.integrate(np.array([1.0, -1.0, 0.3]), u, 0.025)
+    assert np.allclose(out[-1, :2], x[:2]) and np.isclose(wrap(out[-1, 2] - x[2]), 0.0)
+    poses, covs, phi = m.propagate(np.array([1.0, -1.0, 0.3]), np.zeros((3, 3)), u, 0.025)
+    fr, _ = m.jacobians(poses[:-1], u, 0.025)
+    prod = np.eye(3)
+    for f in fr:
+        prod = f @ prod
+    assert np.allclose(phi, prod)
+    assert all(np.linalg.eigvalsh(c).min() > -1e-15 for c in covs)
+
+
+# --- the simulation ----------------------------------------------------------------------
+
+def test_paper_world_and_bearings():
+    cfg = OmniConfig().validate()
+    lm = world(cfg)
+    assert lm.shape == (32, 2)
+    assert np.all((lm >= 0) & (lm <= 80))
+    data = simulate(cfg, np.random.default_rng(0))
+    assert data.steps == 20000 and len(data.epochs()) == 2500
+    # bearings are (9) of the truth plus 1 deg noise
+    p = data.truth[data.meas_step]
+    l = data.landmarks[data.meas_lm]
+    clean = wrap(np.arctan2(l[:, 1] - p[:, 1], l[:, 0] - p[:, 0]) - p[:, 2])
+    resid = wrap(data.meas_bearing - clean)
+    assert abs(np.degrees(resid.std()) - 1.0) < 0.03 and abs(resid.mean()) < 1e-3
+    # the route: a square 12 m inside the walls, about 7 laps
+    laps = np.sum(np.abs(np.diff(np.unwrap(data.truth[:, 2])))) / (2 * np.pi)
+    assert 6.0 < laps < 7.5
+
+
+# --- the filters -------------------------------------------------------------------------
+
+def _quiet(**kw):
+    base = dict(sigma_v=1e-4, sigma_gamma_deg=1e-3, sigma_bearing_deg=1e-3, duration=100.0)
+    base.update(kw)
+    return OmniConfig(**base).validate()
+
+
+def test_noise_free_runs_hit_the_truth():
+    cfg = _quiet()
+    data = simulate(cfg, np.random.default_rng(0))
+    for est in (ekf.run(data, cfg, "clone", "ekf"), graph.isam2(data, cfg), graph.batch(data, cfg)):
+        e = run.pose_errors(data.truth[est.steps], est.pose)
+        assert np.max(np.hypot(e[:, 0], e[:, 1])) < 0.01, est.name
+        assert np.max(np.abs(e[:, 2])) < 1e-3, est.name
+        m = est.final_map - data.landmarks
+        assert np.nanmax(np.hypot(m[:, 0], m[:, 1])) < 0.05, est.name
+        assert np.sum(est.init_step >= 0) >= 30, est.name
+
+
+def test_isam2_ends_where_the_batch_smoother_ends():
+    cfg = OmniConfig(duration=90.0).validate()
+    data = simulate(cfg, np.random.default_rng(4))
+    kf = graph.keyframes(data, cfg)
+    inc, bat = graph.isam2(data, cfg, kf), graph.batch(data, cfg, kf)
+    assert np.allclose(inc.final_map, bat.final_map, atol=0.02, equal_nan=True)
+    assert np.linalg.norm(inc.pose[-1, :2] - bat.pose[-1, :2]) < 0.02
+    assert np.allclose(inc.cov[-1], bat.cov[-1], rtol=0.1, atol=1e-6)
+
+
+def test_clone_augmentation_keeps_the_covariance_positive_definite(monkeypatch):
+    cfg = OmniConfig(duration=120.0).validate()
+    data = simulate(cfg, np.random.default_rng(1))
+    lows = []
+    original = ekf.BearingEkf.try_initialise
+
+    def watched(self, lm, bearing, step):
+        ok = original(self, lm, bearing, step)
+        if ok:
+            lows.append(np.linalg.eigvalsh(self.P[3:, 3:]).min())
+            assert np.allclose(self.P, self.P.T)
+        return ok
+
+    monkeypatch.setattr(ekf.BearingEkf, "try_initialise", watched)
+    ekf.run(data, cfg, "clone", "ekf")
+    assert len(lows) >= 25 and min(lows) > -1e-9
+
+
+def test_clone_ekf_is_consistent_and_the_paper_form_is_not():
+    """Eight seeded runs of 200 s: the cloned EKF's pose ANEES near 3 (3 dof), the paper's
+    augmentation (15) orders of magnitude off; odometry alone drifts and grows."""
+    cfg = OmniConfig(runs=8, duration=200.0, settle=80.0, estimators=("odometry", "ekf-paper", "ekf")).validate()
+    runs = [run.summarise(run.run_once(cfg, r), r) for r in range(cfg.runs)]
+    stats = run.statistics(cfg, runs)["estimators"]
+    lo, hi = run.metrics.chi2_band(3, cfg.runs)
+    assert stats["ekf"]["anees"] < 2.5 * hi
+    assert stats["ekf-paper"]["anees"] > 100 * stats["ekf"]["anees"]
+    assert stats["ekf"]["rmse"]["position"] < 0.5 and stats["ekf"]["rmse"]["heading"] < 1.0
+    assert stats["odometry"]["rmse"]["position"] > 5 * stats["ekf"]["rmse"]["position"]
+    drift = run.mc_curves(runs)["odometry"]["position"]
+    t = runs[0].t
+    assert drift[t > 150].mean() > drift[(t > 20) & (t < 70)].mean()
+
+
+# --- config and export -------------------------------------------------------------------
+
+@pytest.mark.parametrize("bad", [dict(sigma_v=-0.1), dict(sigma_bearing_deg=0.0), dict(skew_gate=0.0),
+                                 dict(skew_gate=3.0), dict(min_parallax_deg=95.0), dict(nis_gate=1.0),
+                                 dict(kappa=-1.0), dict(runs=0), dict(estimators=("ekf", "nope")),
+                                 dict(fov_deg=400.0), dict(dt=0.5)])
+def test_bad_config_is_one_line(bad):
+    with pytest.raises(WorkbenchError) as info:
+        OmniConfig(**bad).validate()
+    assert "\n" not in str(info.value)
+
+
+def test_scenario_defaults_under_given_values():
+    cfg = make_config("mrclam", robot=2, fov_deg=None)
+    assert cfg.robot == 2 and cfg.fov_deg == 70.0 and cfg.settle == 0.0
+    assert make_config("paper", settle=10.0).settle == 10.0
+
+
+def test_tum_round_trip(tmp_path):
+    t = np.arange(5) * 0.2
+    pose = np.column_stack([np.arange(5.0), -np.arange(5.0), np.linspace(-3, 3, 5)])
+    pose[2] = np.nan
+    (path,) = tum.export(tmp_path, {"ekf": (t, pose)}, force=False)
+    tt, back = tum.read_tum(path)
+    ok = np.isfinite(pose).all(axis=1)
+    assert np.allclose(tt, t[ok]) and np.allclose(back, pose[ok], atol=1e-6)
+    first = path.read_text().splitlines()[0].split()
+    assert len(first) == 8 and first[3] == "0.0"
+    with pytest.raises(WorkbenchError):
+        tum.export(tmp_path, {"ekf": (t, pose)}, force=False)
