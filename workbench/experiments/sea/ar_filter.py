@@ -12,7 +12,9 @@ Readings of the paper (spec/sea.md):
   estimates back into the model.
 * The first ``n`` samples have no full regressor and pass through unfiltered.
 * Forecasts (20) iterate the AR model with the current ``theta_t`` (future parameters are
-  unknown), feeding forecasts back as regressors.
+  unknown), feeding forecasts back as regressors. There is none for the first ``n`` steps
+  (no model yet). Positions ahead follow from the forecast angles by (3)-(5), seen from the
+  observer's predicted position; a forecast elevation at or above the horizon has none.
 * A track loss (no measurement) coasts: ``theta`` is frozen, the regressor takes the
   one-step forecast, and the estimate is that forecast.
 
@@ -43,16 +45,22 @@ def estimate(data: SeaData, cfg: SeaConfig, windowed: bool) -> Estimate:
     course = np.broadcast_to(data.course[:, None], (T, L))
     forecast, _ = geometry.position(fa, fb, obs, course, data.height)
     name = "window-rls" if windowed else "rls"
-    return from_angles(name, data, alpha, beta, forecast=forecast)
+    return from_angles(name, data, alpha, beta, forecast=forecast,
+                       forecast_angles=np.stack([fa, fb], axis=-1))
 
 
 def filter_angle(y: np.ndarray, order: int, cfg: SeaConfig, windowed: bool):
-    """Filtered angle ``(T,)`` and forecasts ``(T, horizon)`` for one measured angle series."""
+    """Filtered angle ``(T,)`` and forecasts ``(T, horizon)`` for one measured angle series.
+
+    The first ``order`` steps pass through unfiltered and have no forecast (NaN).
+    """
     if cfg.regressors == "filtered":
         est, theta, series = _sequential(y, order, cfg, windowed)
     else:
         est, theta, series = _closed(y, order, cfg, windowed)
-    return est, forecast(series, theta, order, cfg.intercept, cfg.horizon)
+    ahead = forecast(series, theta, order, cfg.intercept, cfg.horizon)
+    ahead[:order] = np.nan
+    return est, ahead
 
 
 def _fit(H: np.ndarray, y: np.ndarray, cfg: SeaConfig, windowed: bool) -> np.ndarray:

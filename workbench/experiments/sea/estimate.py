@@ -25,6 +25,7 @@ class Estimate:
     state_cov: np.ndarray | None = None   # (T, 4, 4) for NEES, where the estimator has one
     velocity: np.ndarray | None = None    # (T, 2)
     forecast: np.ndarray | None = None    # (T, L, 2) positions 1..L steps ahead of each step
+    forecast_angles: np.ndarray | None = None  # (T, L, 2) alpha, beta ahead (algorithms 2-3)
 
 
 def from_positions(name: str, data: SeaData, position: np.ndarray, **kw) -> Estimate:

@@ -35,14 +35,32 @@ def table(stats: dict) -> str:
             r = e["recovery"]
             state = "" if r["settled"] else ", not settled by the end"
             bits.append(f"impulse transient {r['seconds']:.1f} s above {r['level_arcmin']:.2f}'{state}")
-        if "forecast_rmse" in e:
-            f = e["forecast_rmse"]
-            bits.append(f"{f['steps']}-step forecast rmse x {f['x']:.1f} m, y {f['y']:.1f} m")
+        if "forecast" in e:
+            bits.append(_forecast(e["forecast"]))
         if "rmse_during_loss" in e:
             r = e["rmse_during_loss"]
             bits.append(f"during the loss rmse x {r['x']:.1f} m, y {r['y']:.1f} m")
         extra.append(f"- {name}: " + "; ".join(bits))
     return "\n".join(lines + [""] + extra)
+
+
+def _forecast(f: dict) -> str:
+    """Median and 90th percentile of the l-step forecast errors, and the unusable count."""
+    head = f"{f['steps']}-step ({f['seconds_ahead']:g} s) forecast:"
+    parts = []
+    if "alpha" in f:
+        a, b = f["alpha"], f["beta"]
+        parts.append(f"angle error median {a['median_abs']:.2f}' / {b['median_abs']:.2f}' "
+                     f"(alpha / beta; 90 % under {a['p90_abs']:.1f}' / {b['p90_abs']:.1f}')")
+    p = f["position"]
+    if p["median"] is not None:
+        text = f"position error median {p['median']:.1f} m (90 % under {p['p90']:.1f} m"
+        if not f["unusable"] and None not in p["rmse"].values():
+            text += f"; rmse x {p['rmse']['x']:.1f} m, y {p['rmse']['y']:.1f} m"
+        parts.append(text + ")")
+    if "alpha" in f:
+        parts.append(f"{f['unusable']} of {f['count']} unusable (beta <= 0)")
+    return head + " " + ", ".join(parts)
 
 
 def _pm(mean: float, std: float, runs: int) -> str:
