@@ -26,6 +26,7 @@ lint: $(STAMP)
 
 bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_sea.py
+	$(BIN)/python benchmarks/bench_omni.py
 
 clean:
 	rm -rf $(VENV) recordings/*.rrd

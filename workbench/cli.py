@@ -28,6 +28,7 @@ app = typer.Typer(no_args_is_help=True, add_completion=False,
                   help="Estimation workbench: paper estimators against GTSAM, recorded to Rerun.")
 
 RECORDINGS = PROJECT_ROOT / "recordings"
+OMNI_DEMO_RUNS = 4  # 500 s of SLAM per run with five estimators: about 12 s a run
 
 
 def friendly(fn: Callable) -> Callable:
@@ -283,6 +284,22 @@ def demo(
         typer.echo(f"sea {'ais':10s} -> {out}  ({stats['wall_seconds']:.1f} s)")
     except WorkbenchError as exc:  # the real data is optional for the demo
         typer.echo(f"sea ais skipped: {exc}")
+    from workbench.experiments.omni.config import make_config
+
+    omni_runs = min(runs, OMNI_DEMO_RUNS)
+    out = RECORDINGS / "omni-paper.rrd"
+    stats = run_omni(make_config("paper", runs=omni_runs), out, force, RECORDINGS / "omni-paper.json", False,
+                     False, None, quiet=True)
+    written.append((out, stats))
+    typer.echo(f"omni {'paper':9s} -> {out}  ({stats['wall_seconds']:.1f} s, {omni_runs} runs)")
+    for robot in (1, 2):
+        try:
+            out = RECORDINGS / f"omni-mrclam{robot}.rrd"
+            stats = run_omni(make_config("mrclam", robot=robot), out, force, RECORDINGS / f"omni-mrclam{robot}.json",
+                             False, False, None, quiet=True)
+            typer.echo(f"omni mrclam{robot:<3d} -> {out}  ({stats['wall_seconds']:.1f} s)")
+        except WorkbenchError as exc:
+            typer.echo(f"omni mrclam robot {robot} skipped: {exc}")
     typer.echo(f"\nrecordings in {RECORDINGS}; open one with: workbench view {written[0][0]}")
 
 

@@ -21,7 +21,6 @@ Missing samples (a track loss) carry no row: at such a step the recursion does
 from __future__ import annotations
 
 import numpy as np
-from scipy.signal import lfilter
 
 RTOL = 1e-10
 """Relative cut-off of the pseudo-inverses. The closed forms build W from differences of
@@ -94,6 +93,8 @@ def rls_closed(H: np.ndarray, y: np.ndarray, lam: float = 1.0, rows: np.ndarray 
         W = np.cumsum(outer, axis=0)
         b = np.cumsum(rhs, axis=0)
     else:
+        from scipy.signal import lfilter  # imported here: scipy.signal costs ~1 s at start-up
+
         W = lfilter([1.0], [1.0, -lam], outer, axis=0)
         b = lfilter([1.0], [1.0, -lam], rhs, axis=0)
     return _solve(W, b)
