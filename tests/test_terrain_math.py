@@ -1,0 +1,156 @@
+"""Terrain experiment: the camera model (1) both ways, the DEM, the error modes, the filter bank
+(2)-(4) literal against the batch form, and noise-free searches that land on the truth."""
+
+import math
+
+import numpy as np
+import pytest
+
+from workbench.errors import WorkbenchError
+from workbench.experiments.terrain import camera, dem, halftone, navigation, scene, search
+from workbench.experiments.terrain.config import TerrainConfig
+
+
+def test_rotation_derivatives_and_axes():
+    a = np.array([0.3, -0.2, 0.1])
+    r, dr = camera.rotation_and_derivatives(a)
+    w = camera.axes(a)
+    for i in range(3):
+        step = np.zeros(3)
+        step[i] = 1e-6
+        fd = (camera.rotation(a + step) - camera.rotation(a - step)) / 2e-6
+        assert np.allclose(dr[i], fd, atol=1e-8)
+        skew = np.array([[0, -w[i, 2], w[i, 1]], [w[i, 2], 0, -w[i, 0]], [-w[i, 1], w[i, 0], 0]])
+        assert np.allclose(dr[i], skew @ r, atol=1e-12)
+    assert np.allclose(r @ r.T, np.eye(3)) and math.isclose(np.linalg.det(r), 1.0)
+    assert np.allclose(camera.angles_from_rotation(r), a)
+
+
+def test_level_camera_hand_case():
+    """A level camera 1000 m over flat ground at 0 m, f = 1000 px: a point 100 m east and 50 m
+    north of nadir is 100 px right of and 50 px above the principal point."""
+    k = camera.Intrinsics(1000.0, 1000.0, 50.0, 50.0, 101, 101)
+    uv = camera.project(k, np.array([0.0, 0.0, 1000.0]), camera.rotation(np.zeros(3)), np.array([100.0, 50.0, 0.0]))
+    assert np.allclose(uv, [150.0, 0.0])
+    flat = dem.Dem(np.zeros((50, 50)), -500.0, -500.0, 25.0, 25.0)
+    g = camera.ground_points(flat, k, np.array([0.0, 0.0, 1000.0]), camera.rotation(np.zeros(3)),
+                             np.array([150.0]), np.array([0.0]))
+    assert np.allclose(g, [[100.0, 50.0, 0.0]], atol=1e-9)
+
+
+def test_inverse_then_forward_on_relief(rng):
+    d = dem.synthetic(rng, (-2000, 2000, -2000, 2000), 20.0, 100.0)
+    k = camera.Intrinsics(400.0, 300.0, 49.5, 49.5, 100, 100)
+    pos, ang = np.array([10.0, -20.0, 1700.0]), np.array([0.2, 0.01, -0.015])
+    u, v = k.pixel_grid(7)
+    g = camera.ground_points(d, k, pos, camera.rotation(ang), u, v)
+    h, _, _ = d.sample(g[:, 0], g[:, 1])
+    assert np.abs(g[:, 2] - h).max() < 1e-6
+    assert np.abs(camera.project(k, pos, camera.rotation(ang), g) - np.stack([u, v], 1)).max() < 1e-6
+
+
+def test_dem_bilinear_gradient_is_exact_inside_a_cell():
+    z = np.array([[0.0, 10.0], [4.0, 30.0]])
+    d = dem.Dem(z, 0.0, 0.0, 10.0, 10.0)
+    h, hx, hy = d.sample(np.array([5.0]), np.array([5.0]))
+    assert math.isclose(h[0], 11.0)  # mean of the corners
+    assert math.isclose(hx[0], ((10 - 0) + (30 - 4)) / 2 / 10) and math.isclose(hy[0], ((4 - 0) + (30 - 10)) / 2 / 10)
+    with pytest.raises(WorkbenchError):
+        d.sample(np.array([11.0]), np.array([5.0]))
+
+
+def test_error_modes_and_dynamics():
+    m = navigation.error_map("common", 5.0)
+    x = np.array([10.0, 1.0, -3.0, 0.001, 20.0, -2.0, 0.002, 0.003])  # dX dVx dH dth dY dVy dpsi dgam
+    e = m @ x
+    assert np.allclose(e[0], [10, 20, -3, 0.002, 0.001, 0.003])
+    assert np.allclose(e[1], [15, 10, -3, 0.002, 0.001, 0.003])  # position grown by dV * T
+    m2 = navigation.error_map("ii-only", 5.0)
+    e2 = m2 @ np.array([10.0, -3.0, 0.001, 20.0, 0.002, 0.003])
+    assert np.allclose(e2[0], 0) and np.allclose(e2[1], [10, 20, -3, 0.002, 0.001, 0.003])
+
+
+def test_grid_hypotheses_cover_the_cube(rng):
+    cfg = TerrainConfig(mode="common").validate()
+    hyp = search.hypotheses(cfg, rng)
+    assert hyp.centres.shape == (5 ** 3 * 3 ** 3, 8)
+    assert np.allclose(np.unique(hyp.centres[:, 0]), [-80, -40, 0, 40, 80])
+    assert np.allclose(np.unique(hyp.centres[:, 3]), [-0.002, 0, 0.002])
+    assert np.all(hyp.centres[:, [1, 5]] == 0)  # velocities are filtered, not searched
+    assert np.isclose(hyp.prior[0, 0], 40.0 ** 2 / 12) and np.isclose(hyp.prior[1, 1], 1.0 / 3)
+    cfg.hypotheses, cfg.samples = "sample", 30
+    s = search.hypotheses(cfg, rng)
+    assert s.centres.shape == (30, 8) and np.abs(s.centres[:, 0]).max() <= 100
+
+
+@pytest.fixture(scope="module")
+def small():
+    """A 100 x 100 pair, noise-free images, known errors."""
+    def make(mode):
+        cfg = TerrainConfig(mode=mode, size="100x100", image_noise=0.0, supersample=1).validate()
+        rng = np.random.default_rng(3)
+        sc = scene.synthetic_scene(cfg, rng)
+        state = navigation.draw_state(cfg, rng)
+        pos, ang = navigation.measured(sc.position, sc.angles, navigation.error_map(mode, sc.interval) @ state)
+        return cfg, sc, state, search.make_problem(cfg, sc.k, sc.dem, pos, ang, sc.images, sc.interval)
+    return {m: make(m) for m in ("ii-only", "common")}
+
+
+@pytest.mark.parametrize("mode", ["ii-only", "common"])
+def test_literal_bank_equals_batch_form(small, mode):
+    cfg, sc, state, p = small[mode]
+    hyp = search.hypotheses(cfg, np.random.default_rng(0))
+    pick = hyp.centres[[0, 700, 1687, 3374]]
+    r0, h = search.linearise(p, pick)
+    r0, h = r0[:, ::4].astype(float), h[:, :, ::4].astype(float)  # every 4th node keeps the loop short
+    f_batch, x_batch, g_batch = search.batch(r0, h, pick, hyp.prior, p.r)
+    for i in range(len(pick)):
+        f, x, g = search.literal(r0[i], h[i], pick[i], hyp.prior, p.r)
+        assert abs(f - f_batch[i]) <= 1e-9 * max(1.0, abs(f))
+        assert np.allclose(x, x_batch[i], rtol=1e-7, atol=1e-9 * np.abs(x).max())
+        assert np.allclose(g, g_batch[i], rtol=1e-6, atol=1e-12)
+        assert np.allclose(g, g.T) and np.all(np.linalg.eigvalsh(g) > 0)
+
+
+def test_jacobian_matches_finite_differences(small):
+    """H = grad f_II . d(u, v)/dX against central differences of the measurement (ii-only:
+    the ground points are exact, so only the projection and the image read differ)."""
+    cfg, sc, state, p = small["ii-only"]
+    centre = state[None]
+    _, h = search.linearise(p, centre)
+    for i, name in enumerate(navigation.STATE["ii-only"]):
+        step = np.zeros_like(centre)
+        step[0, i] = 0.5 if name in navigation.LINEAR else 5e-5
+        rp, _ = search.linearise(p, centre + step)
+        rm, _ = search.linearise(p, centre - step)
+        fd = -(rp - rm)[0] / (2 * step[0, i])
+        corr = np.corrcoef(fd, h[0, i])[0, 1]
+        assert corr > 0.8, (name, corr)
+        assert 0.6 < np.abs(h[0, i]).mean() / np.abs(fd).mean() < 1.4, name
+
+
+@pytest.mark.parametrize("mode", ["ii-only", "common"])
+def test_noise_free_search_finds_the_truth(small, mode):
+    """With the true error as one hypothesis's centre the search picks it; the refinement stays
+    within a third of a pixel (16 x 12 m here) and 0.5 mrad (yaw has the shortest lever)."""
+    cfg, sc, state, p = small[mode]
+    hyp = search.hypotheses(cfg, np.random.default_rng(0))
+    truth = state.copy()
+    names = navigation.STATE[mode]
+    truth[[i for i, n in enumerate(names) if n in navigation.VELOCITY]] = 0.0
+    hyp.centres = np.vstack([hyp.centres[::7], truth])
+    res = search.run(p, hyp)
+    assert res.winner == len(hyp.centres) - 1
+    lin = [i for i, n in enumerate(names) if n in navigation.LINEAR]
+    ang = [i for i, n in enumerate(names) if n in navigation.ANGULAR]
+    assert np.abs(res.refinement - state)[lin].max() < 5.0
+    assert np.abs(res.refinement - state)[ang].max() < 5e-4
+
+
+def test_halftone_ground_error_is_zero_for_the_truth_and_grows(small):
+    cfg, sc, state, p = small["ii-only"]
+    truth = (sc.position[1], sc.angles[1])
+    assert halftone.rmse(halftone.ground_error(sc.dem, sc.k, truth, truth, step=5)) < 1e-9
+    shifted = (sc.position[1] + np.array([30.0, 40.0, 0.0]), sc.angles[1])
+    err = halftone.ground_error(sc.dem, sc.k, truth, shifted, step=5)
+    assert abs(np.median(err) - 50.0) < 5.0  # a level shift moves the ground points by about as much

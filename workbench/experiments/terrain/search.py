@@ -1,0 +1,348 @@
+"""Recurrent-search estimation (the paper's (2)-(4)): a bank of Kalman filters, one per
+hypothesis D_pq about the mean of the navigation errors, run over the node points of image I;
+the hypothesis with the least functional I_pq wins.
+
+Measurement model (the paper's observation equation, read per ``spec/terrain.md``): for a
+node ``(u, v)`` of image I (every ``node_step``-th pixel), the orientation corrected by the
+state gives its ground point on the DEM (1, inverse), which projects into image II (1,
+forward); image II is read there bilinearly. ``Z_k`` is image I's irradiance, ``F`` image
+II's, and ``H_k = grad f_II . d(u, v)/dX`` (the projection's derivative, through the ground
+point's dependence on image I's orientation in the common-error mode).
+
+Readings taken:
+
+* The linearisation is held per hypothesis at its cell centre ``m_pq`` (the spec's "with the
+  linearisation held per hypothesis"), so the innovation (2) is
+  ``Delta_k = Z_k - F(m_pq) - H_k (X^_k|k-1 - m_pq)``.
+* The state does not move from node to node (A = I inside the bank; the dynamics between the
+  exposures are in the measurement function, see ``navigation``).
+* In (4) the log-determinant term is read ``eps_k = ln(|Gamma_k|k-1| |R| / |Gamma_k|)`` with the
+  *posterior* at node k in the denominator: that is ``ln |HGH' + R|``, the Gaussian likelihood's
+  term. Read literally (``Gamma_{k-1}``, which equals ``Gamma_k|k-1`` when A = I) it would be
+  ``ln |R|`` for every hypothesis and carry no information.
+* The prior probabilities P_pq are equal, so their term is left out (it would add a constant).
+* Nodes: those of image I that land inside image II, with a margin for the largest error, under
+  the measured orientation; the same node set for every hypothesis, so functionals compare.
+
+The batch form: with the linearisation fixed, the sequential filter's functional equals
+``r'r/R - b'(G^-1 + H'H/R)^-1 b + N ln R + ln|G| - ln|Gamma_N|`` with ``b = H'r/R`` (the
+information form and Woodbury's identity), and the refined state is ``m + Gamma_N b``; it is
+evaluated for chunks of hypotheses at once, the chunk sized to a memory budget.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from workbench.errors import require
+from workbench.experiments.terrain import camera, navigation
+from workbench.experiments.terrain.camera import Intrinsics
+from workbench.experiments.terrain.config import TerrainConfig
+from workbench.experiments.terrain.dem import Dem
+
+ARRAYS_PER_NODE = 60  # float32 temporaries per node and hypothesis in ``linearise`` (memory budget)
+TARGET_ELEMENTS = 1 << 19  # hypotheses x nodes per chunk: big enough to amortise, small enough for the cache
+
+
+@dataclass
+class Problem:
+    """Everything the bank needs: the measured orientation, the images, the nodes, the model.
+
+    Coordinates are relative to ``origin`` (so float32 keeps centimetres on a real map grid)."""
+
+    mode: str
+    k: Intrinsics
+    dem: Dem                  # shifted to the local origin
+    origin: np.ndarray        # (3,) subtracted from world coordinates
+    position: np.ndarray      # (2, 3) measured, local
+    angles: np.ndarray        # (2, 3) measured
+    m: np.ndarray             # (2, 6, n) pose errors = m @ state
+    nodes: np.ndarray         # (N, 2) node pixels (u, v) in image I
+    z: np.ndarray             # (N,) image I at the nodes
+    t0: np.ndarray            # (N,) ray parameters of the nodes under the measured orientation
+    h0: np.ndarray            # (N,) their ground heights (Newton's start under a hypothesis)
+    image2: np.ndarray        # (H, W, 3) float32: image II, d/du, d/dv
+    dem_stack: np.ndarray     # (rows, cols, 3) float32: h, dh/dcol, dh/drow
+    r: float                  # measurement noise variance R
+
+    @property
+    def n(self) -> int:
+        return self.m.shape[2]
+
+
+def gradient_stack(image: np.ndarray) -> np.ndarray:
+    """``(H, W, 3)`` float32: the image and its central-difference derivatives along u and v."""
+    gv, gu = np.gradient(np.asarray(image, float))
+    return np.ascontiguousarray(np.stack([image, gu, gv], axis=-1), dtype=np.float32)
+
+
+def remap(stack: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Bilinear read of the three channels of ``stack`` at ``(u, v)`` (edges held), through
+    OpenCV's ``remap`` (multi-threaded; 1/32-pixel interpolation weights)."""
+    import cv2
+
+    shape = u.shape
+    n = u.size
+    width = 1024
+    rows = -(-n // width)
+    mu = np.zeros(rows * width, np.float32)
+    mv = np.zeros(rows * width, np.float32)
+    mu[:n] = u.ravel()
+    mv[:n] = v.ravel()
+    out = cv2.remap(stack, mu.reshape(rows, width), mv.reshape(rows, width), cv2.INTER_LINEAR,
+                    borderMode=cv2.BORDER_REPLICATE)
+    return out.reshape(-1, 3)[:n].reshape(*shape, 3)
+
+
+def make_problem(cfg: TerrainConfig, k: Intrinsics, dem: Dem, position: np.ndarray, angles: np.ndarray,
+                 images: np.ndarray, interval: float) -> Problem:
+    """Nodes of image I every ``node_step`` pixels that fall inside image II, under the measured
+    orientation, with a margin of the largest displacement the errors can cause."""
+    m = navigation.error_map(cfg.mode, interval)
+    origin = np.array([np.round(position[0, 0]), np.round(position[0, 1]), 0.0])
+    local = Dem(dem.heights, dem.x0 - origin[0], dem.y0 - origin[1], dem.dx, dem.dy)
+    position = np.asarray(position, float) - origin
+    u, v = k.pixel_grid(cfg.node_step)
+    r_wc = camera.rotation(angles)
+    d = k.rays(u, v) @ r_wc[0].T
+    t = camera.intersect(local, np.broadcast_to(position[0], d.shape), d, what="image I's footprint")
+    g = position[0] + t[:, None] * d
+    uv = camera.project(k, position[1], r_wc[1], g)
+    depth = position[1, 2] - local.mean_height
+    spread = 3.0 if cfg.distribution == "gaussian" else 1.0
+    lin = spread * (cfg.max_linear + cfg.max_velocity * interval) * max(k.fx, k.fy) / depth
+    ang = spread * cfg.max_angular * max(k.fx, k.fy)
+    margin = min(lin + ang + 2.0, 0.45 * min(k.width, k.height))
+    inside = ((uv[:, 0] >= margin) & (uv[:, 0] <= k.width - 1 - margin)
+              & (uv[:, 1] >= margin) & (uv[:, 1] <= k.height - 1 - margin))
+    require(int(inside.sum()) >= 50,
+            "fewer than 50 nodes of image I fall inside image II: the pair does not overlap enough "
+            "for these error maxima")
+    nodes = np.stack([u[inside], v[inside]], axis=1)
+    z = images[0][nodes[:, 1].astype(int), nodes[:, 0].astype(int)]
+    hr, hc = np.gradient(local.heights)
+    dem_stack = np.ascontiguousarray(np.stack([local.heights, hc, hr], axis=-1), dtype=np.float32)
+    return Problem(cfg.mode, k, local, origin, position, np.asarray(angles, float), m, nodes, z, t[inside],
+                   g[inside, 2], gradient_stack(images[1]), dem_stack, cfg.sigma_r ** 2)
+
+
+# --- hypotheses --------------------------------------------------------------------------------
+
+@dataclass
+class Hypotheses:
+    centres: np.ndarray   # (n_h, n) state-space cell centres m_pq
+    prior: np.ndarray     # (n, n) G: the spread of the errors inside a cell
+    kind: str
+
+
+def hypotheses(cfg: TerrainConfig, rng: np.random.Generator) -> Hypotheses:
+    """The full grid (``levels_linear^3 x levels_angular^3`` cells of the confidence cube and
+    "spherical cube"), or ``samples`` centres drawn uniformly in them (the paper's number of
+    functionals in the sample); G is the variance of a uniform error over one cell (for
+    samples, a cell of the cube's volume over N). Velocity errors are not searched: their
+    hypothesis mean is 0 and G holds their whole spread."""
+    names = navigation.STATE[cfg.mode]
+    top = navigation.maxima(cfg)
+    lin_axes = [i for i, n in enumerate(names) if n in navigation.LINEAR]
+    ang_axes = [i for i, n in enumerate(names) if n in navigation.ANGULAR]
+    vel_axes = [i for i, n in enumerate(names) if n in navigation.VELOCITY]
+    n = len(names)
+    if cfg.hypotheses == "grid":
+        levels = np.ones(n, int)
+        levels[lin_axes] = cfg.levels_linear
+        levels[ang_axes] = cfg.levels_angular
+        width = 2.0 * top / levels
+        axes = [(-top[i] + width[i] * (np.arange(levels[i]) + 0.5)) if i not in vel_axes else np.zeros(1)
+                for i in range(n)]
+        centres = np.array(list(itertools.product(*axes)))
+    else:
+        centres = rng.uniform(-top, top, size=(cfg.samples, n))
+        width = 2.0 * top / cfg.samples ** (1.0 / 6.0)
+        centres[:, vel_axes] = 0.0
+    var = width ** 2 / 12.0
+    var[vel_axes] = top[vel_axes] ** 2 / 3.0 if cfg.distribution == "uniform" else (top[vel_axes] / 3.0) ** 2
+    var = np.maximum(var, 1e-12)
+    return Hypotheses(centres, np.diag(var), cfg.hypotheses)
+
+
+# --- the measurement model, linearised at each hypothesis -----------------------------------
+
+def _cross(a: list, b: list) -> list:
+    return [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+
+
+def _dem_read(p: Problem, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    s = remap(p.dem_stack, (x - np.float32(p.dem.x0)) / np.float32(p.dem.dx),
+              (y - np.float32(p.dem.y0)) / np.float32(p.dem.dy))
+    return s[..., 0], s[..., 1] / np.float32(p.dem.dx), s[..., 2] / np.float32(p.dem.dy)
+
+
+def linearise(p: Problem, centres: np.ndarray, newton: int = 3) -> tuple[np.ndarray, np.ndarray]:
+    """``r0 = Z - F(m)`` ``(c, N)`` and ``H = dF/dX`` at ``m`` ``(c, n, N)`` for centres ``(c, n)``,
+    float32, computed component by component (derivatives of the rotation as cross products:
+    ``dR/da = [w_a]x R``). In the common-error mode the ground point of every node is found
+    again for each hypothesis (``newton`` Newton steps from the measured orientation's point)."""
+    f32 = np.float32
+    c = len(centres)
+    err = np.einsum("ern,cn->cer", p.m, centres)                         # (c, 2, 6)
+    pos = p.position[None] - err[..., :3]
+    ang = p.angles[None] - err[..., 3:]
+    rot = camera.rotation(ang).astype(f32)                               # (c, 2, 3, 3)
+    w = camera.axes(ang).astype(f32)                                     # (c, 2, 3 angles, 3)
+    pos32 = pos.astype(f32)
+    ray = p.k.rays(p.nodes[:, 0], p.nodes[:, 1]).astype(f32)             # (N, 3)
+    moves_i = bool(np.any(p.m[0]))
+    ci = c if moves_i else 1
+
+    def col(a: np.ndarray) -> np.ndarray:                                # (ci,) -> (ci, 1)
+        return a[:, None]
+
+    d = [col(rot[:ci, 0, i, 0]) * ray[:, 0] + col(rot[:ci, 0, i, 1]) * ray[:, 1] + col(rot[:ci, 0, i, 2])
+         for i in range(3)]
+    o = [col(pos32[:ci, 0, i]) for i in range(3)]
+    if moves_i:
+        t = (o[2] - p.h0.astype(f32)) / -d[2]
+        for _ in range(newton):
+            x, y = o[0] + t * d[0], o[1] + t * d[1]
+            h, hx, hy = _dem_read(p, x, y)
+            t = t - (o[2] + t * d[2] - h) / (d[2] - hx * d[0] - hy * d[1])
+        g = [o[i] + t * d[i] for i in range(3)]
+        require(bool(np.all(p.dem.covers(g[0], g[1]))),
+                "the DEM does not cover image I's footprint under a hypothesis")
+    else:
+        t = p.t0.astype(f32)[None]
+        g = [o[i] + t * d[i] for i in range(3)]
+    q = [g[i] - col(pos32[:, 1, i]) for i in range(3)]                   # (c, N)
+    r2 = rot[:, 1]
+    pc = [col(r2[:, 0, j]) * q[0] + col(r2[:, 1, j]) * q[1] + col(r2[:, 2, j]) * q[2] for j in range(3)]
+    inv = f32(1.0) / pc[2]
+    u = f32(p.k.cx) + f32(p.k.fx) * pc[0] * inv
+    v = f32(p.k.cy) + f32(p.k.fy) * pc[1] * inv
+    s = remap(p.image2, u, v)
+    r0 = p.z.astype(f32)[None] - s[..., 0]
+    gu, gv = s[..., 1] * f32(p.k.fx) * inv, s[..., 2] * f32(p.k.fy) * inv
+    gp = [gu, gv, -(gu * pc[0] + gv * pc[1]) * inv]                      # dF/dp (camera II frame)
+    dfdg = [col(r2[:, i, 0]) * gp[0] + col(r2[:, i, 1]) * gp[1] + col(r2[:, i, 2]) * gp[2] for i in range(3)]
+    jac: dict[tuple[int, int], np.ndarray] = {}
+    cr = _cross(dfdg, q)                                                 # dF/dangle_a = w_a . (dfdg x q)
+    for i in range(3):
+        jac[1, i] = -dfdg[i]
+        jac[1, 3 + i] = col(w[:, 1, i, 0]) * cr[0] + col(w[:, 1, i, 1]) * cr[1] + col(w[:, 1, i, 2]) * cr[2]
+    if moves_i:
+        a = [hx, hy, -np.ones_like(hx)]
+        ratio = (d[0] * dfdg[0] + d[1] * dfdg[1] + d[2] * dfdg[2]) / (a[0] * d[0] + a[1] * d[1] + a[2] * d[2])
+        y = [dfdg[i] - a[i] * ratio for i in range(3)]                   # dF/dw, w = dC + t dR ray
+        cr1 = _cross(d, y)                                               # dF/dangle_a = t w_a . (d x y)
+        for i in range(3):
+            jac[0, i] = y[i]
+            jac[0, 3 + i] = t * (col(w[:, 0, i, 0]) * cr1[0] + col(w[:, 0, i, 1]) * cr1[1]
+                                 + col(w[:, 0, i, 2]) * cr1[2])
+    h_out = np.zeros((c, p.n, len(p.nodes)), f32)
+    for (e, comp), val in jac.items():                                   # H = -J M (error = measured - true)
+        for kk in np.flatnonzero(p.m[e, comp]):
+            h_out[:, kk] -= f32(p.m[e, comp, kk]) * val
+    return r0, h_out
+
+
+# --- the filter bank: literal recursion and batch form -------------------------------------
+
+def literal(r0: np.ndarray, h: np.ndarray, centre: np.ndarray, prior: np.ndarray, r: float
+            ) -> tuple[float, np.ndarray, np.ndarray]:
+    """The paper's (2)-(4) node by node for one hypothesis (``r0 (N,)``, ``h (n, N)``):
+    functional, state, covariance.
+
+    (2) ``X^_k = X^_k|k-1 + K_k Delta_k``, ``K_k = Gamma_k H_k' R^-1``; (3) the Riccati update;
+    (4) ``I_k = I_k-1 + Delta_k' Sigma_k^-1 Delta_k + eps_k`` with the paper's
+    ``Sigma_k^-1 = R^-1 - R^-1 H_k Gamma_k H_k' R^-1`` (the innovation covariance's inverse
+    by the matrix inversion lemma) and ``eps_k`` as read in the module docstring.
+    """
+    x = np.array(centre, float)
+    gam = np.array(prior, float)
+    rinv = 1.0 / r
+    total = 0.0
+    _, logdet_prev = np.linalg.slogdet(gam)
+    for k in range(len(r0)):
+        hk = h[:, k][None, :]                                            # (1, n)
+        delta = r0[k] - (hk @ (x - centre)).item()                         # (2), linearised at m_pq
+        s = hk @ gam @ hk.T + r
+        gam_post = gam - gam @ hk.T @ np.linalg.inv(s) @ hk @ gam        # (3)
+        gain = gam_post @ hk.T * rinv
+        x = x + gain[:, 0] * delta
+        sigma_inv = rinv - rinv * (hk @ gam_post @ hk.T).item() * rinv     # (4)
+        _, logdet_post = np.linalg.slogdet(gam_post)
+        eps = logdet_prev + math.log(r) - logdet_post
+        total += delta * sigma_inv * delta + eps
+        gam, logdet_prev = gam_post, logdet_post                         # A = I: Gamma_k+1|k = Gamma_k
+    return total, x, gam
+
+
+def batch(r0: np.ndarray, h: np.ndarray, centres: np.ndarray, prior: np.ndarray, r: float
+          ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The same functional for a chunk of hypotheses at once (information form + Woodbury);
+    ``r0 (c, N)``, ``h (c, n, N)``. Returns functionals ``(c,)``, refined states ``(c, n)``,
+    posterior covariances ``(c, n, n)``."""
+    n_nodes = r0.shape[1]
+    ginv = np.linalg.inv(prior)
+    info = ginv[None] + np.matmul(h, h.transpose(0, 2, 1)).astype(float) / r
+    b = np.matmul(h, r0[..., None])[..., 0].astype(float) / r
+    gam = np.linalg.inv(info)
+    gam = 0.5 * (gam + gam.transpose(0, 2, 1))
+    gb = np.einsum("cij,cj->ci", gam, b)
+    quad = np.einsum("cn,cn->c", r0, r0, dtype=float) / r - np.einsum("ci,ci->c", b, gb)
+    _, logdet_g = np.linalg.slogdet(prior)
+    _, logdet_post = np.linalg.slogdet(gam)
+    functional = quad + n_nodes * math.log(r) + logdet_g - logdet_post
+    return functional, centres + gb, gam
+
+
+@dataclass
+class SearchResult:
+    centres: np.ndarray       # (n_h, n)
+    functional: np.ndarray    # (n_h,)
+    refined: np.ndarray       # (n_h, n) the filters' final states
+    winner: int
+    nodes: int
+    chunk: int
+
+    @property
+    def centre(self) -> np.ndarray:
+        """The paper's estimate: the winning cell's centre."""
+        return self.centres[self.winner]
+
+    @property
+    def refinement(self) -> np.ndarray:
+        """The winning filter's state: the in-cell refinement."""
+        return self.refined[self.winner]
+
+
+def chunk_size(p: Problem, budget_mb: float) -> int:
+    """Hypotheses per chunk: about ``TARGET_ELEMENTS`` node-hypotheses, never over the budget."""
+    per = len(p.nodes) * ARRAYS_PER_NODE * 4
+    return max(1, min(int(budget_mb * 1e6 // per), TARGET_ELEMENTS // len(p.nodes) or 1))
+
+
+def run(p: Problem, hyp: Hypotheses, bank: str = "batch", budget_mb: float = 256.0,
+        progress: Callable[[int], None] | None = None) -> SearchResult:
+    """Every hypothesis's functional; ``bank='literal'`` runs (2)-(4) node by node (slow; the
+    reference), ``'batch'`` the vectorised form in memory-bounded chunks."""
+    n_h = len(hyp.centres)
+    functional = np.empty(n_h)
+    refined = np.empty_like(hyp.centres)
+    step = chunk_size(p, budget_mb)
+    for lo in range(0, n_h, step):
+        sl = slice(lo, min(lo + step, n_h))
+        r0, h = linearise(p, hyp.centres[sl])
+        if bank == "literal":
+            for i, j in enumerate(range(sl.start, sl.stop)):
+                functional[j], refined[j], _ = literal(r0[i].astype(float), h[i].astype(float), hyp.centres[j],
+                                                       hyp.prior, p.r)
+        else:
+            functional[sl], refined[sl], _ = batch(r0, h, hyp.centres[sl], hyp.prior, p.r)
+        if progress:
+            progress(sl.stop - sl.start)
+    return SearchResult(hyp.centres, functional, refined, int(np.argmin(functional)), len(p.nodes), step)
