@@ -8,6 +8,11 @@ Poses are ``(x, y, phi)``; a control ``u`` acts over one step ``dt``.
   ``y += dt v sin phi``, ``phi += dt w``.
 
 The covariance (8): ``P' = F_R P F_R' + F_U U F_U' + Q`` with ``F_R = df/dx_R``, ``F_U = df/du``.
+The noise is white per step by default (the paper's reading, ``U = diag(sigma_u^2)`` and ``Q``
+whatever the step). With ``per_second`` the sigmas are densities instead, ``U_k = diag(sigma_u^2) /
+dt_k`` and ``Q_k = diag(sigma_q^2) dt_k``, so that the variance a stretch of odometry adds grows
+with its duration and not with how many rows the log happens to have in it: MRCLAM's odometry
+arrives at irregular steps (0.01 s mostly, 0.02-0.04 s often, gaps up to 1 s).
 Everything here is vectorised over steps: headings are a cumulative sum, positions too,
 given a start pose, so a stretch of dead reckoning costs no Python loop.
 """
@@ -25,12 +30,14 @@ MODELS = ("bicycle", "unicycle")
 
 @dataclass(frozen=True)
 class Motion:
-    """A motion model with its noise: ``sigma_u`` per control (white per step), ``sigma_q`` (Q)."""
+    """A motion model with its noise: ``sigma_u`` per control, ``sigma_q`` (Q); white per step,
+    or densities (per square-root second) with ``per_second``."""
 
     model: str
     wheelbase: float
     sigma_u: tuple[float, float]
     sigma_q: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    per_second: bool = False
 
     def heading_rates(self, controls: np.ndarray) -> np.ndarray:
         """``dphi/dt`` per step."""
@@ -72,10 +79,16 @@ class Motion:
             fu[:, 2, 1] = dt
         return fr, fu
 
-    def step_noise(self, fu: np.ndarray) -> np.ndarray:
-        """``F_U U F_U' + Q`` per step, ``(K, 3, 3)``."""
+    def step_noise(self, fu: np.ndarray, dt: np.ndarray | float | None = None) -> np.ndarray:
+        """``F_U U F_U' + Q`` per step, ``(K, 3, 3)`` (``dt`` is needed only ``per_second``)."""
         u = np.diag(np.square(self.sigma_u))
-        return fu @ u @ fu.transpose(0, 2, 1) + np.diag(np.square(self.sigma_q))
+        q = np.diag(np.square(self.sigma_q))
+        if not self.per_second:
+            return fu @ u @ fu.transpose(0, 2, 1) + q
+        dt = np.broadcast_to(np.asarray(dt, float), (len(fu),))
+        with np.errstate(divide="ignore", invalid="ignore"):
+            scale = np.where(dt > 0, 1.0 / dt, 0.0)
+        return scale[:, None, None] * (fu @ u @ fu.transpose(0, 2, 1)) + dt[:, None, None] * q
 
     def propagate(self, start: np.ndarray, cov: np.ndarray, controls: np.ndarray, dt: np.ndarray
                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -83,7 +96,7 @@ class Motion:
         product ``Phi = F_R[K-1] ... F_R[0]`` (what the cross-covariances need)."""
         poses = self.integrate(start, controls, dt)
         fr, fu = self.jacobians(poses[:-1], controls, dt)
-        noise = self.step_noise(fu)
+        noise = self.step_noise(fu, dt)
         covs = np.empty((len(poses), 3, 3))
         covs[0] = cov
         p = cov
