@@ -57,6 +57,8 @@ class OmniConfig:
     robot: int = 1
     sigma_w_deg: float = 5.0
     noise_per_second: bool = False
+    lm_every: float = 0.0
+    huber: float = 0.0
     start_time: float | None = None
     end_time: float | None = None
     estimators: tuple[str, ...] = field(default=ESTIMATORS)
@@ -101,6 +103,9 @@ class OmniConfig:
         require(self.dt <= 1.0 / self.bearing_rate, "--dt must not exceed the bearing period 1/--bearing-rate")
         if self.scenario == "paper":
             require(self.duration / self.dt <= 2_000_000, "--duration / --dt is over 2 million steps")
+        require(math.isfinite(self.lm_every) and self.lm_every >= 0.0,
+                f"--lm-every must be >= 0 s (got {self.lm_every})")
+        require(math.isfinite(self.huber) and self.huber >= 0.0, f"--huber must be >= 0 sigmas (got {self.huber})")
         return self
 
     def to_json(self) -> dict:
