@@ -59,6 +59,8 @@ class OmniConfig:
     noise_per_second: bool = False
     lm_every: float = 0.0
     huber: float = 0.0
+    ekf_init: str = "ut"
+    ekf_second_order: bool = False
     start_time: float | None = None
     end_time: float | None = None
     estimators: tuple[str, ...] = field(default=ESTIMATORS)
@@ -106,6 +108,7 @@ class OmniConfig:
         require(math.isfinite(self.lm_every) and self.lm_every >= 0.0,
                 f"--lm-every must be >= 0 s (got {self.lm_every})")
         require(math.isfinite(self.huber) and self.huber >= 0.0, f"--huber must be >= 0 sigmas (got {self.huber})")
+        require(self.ekf_init in ("ut", "linear"), f"--ekf-init must be ut or linear (got {self.ekf_init!r})")
         return self
 
     def to_json(self) -> dict:
