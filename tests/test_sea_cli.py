@@ -132,4 +132,4 @@ def test_list_names_experiments():
     r = wb("list")
     assert r.returncode == 0
     names = [line.split()[0] for line in r.stdout.splitlines()]
-    assert names == ["omni", "sea"]
+    assert names == ["omni", "sea", "terrain"]

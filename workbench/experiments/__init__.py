@@ -5,4 +5,6 @@ EXPERIMENTS: dict[str, str] = {
     "initialisation) against GTSAM iSAM2 and batch LM; simulation and the MRCLAM robots",
     "sea": "paper 002: object on the sea from a monocular camera; geometric, diffuse RLS, "
     "sliding-window RLS, EKF against a GTSAM smoother (LM and iSAM2)",
+    "terrain": "paper 001: aerial stereo pair + DEM; recurrent-search estimation (a Kalman filter bank "
+    "over error hypotheses) against GTSAM bundle adjustment; synthetic and the real NGI frames",
 }

@@ -116,17 +116,37 @@ def intersect(dem, origin: np.ndarray, direction: np.ndarray, iterations: int = 
     """Equation (1), inverse: ray parameters ``t`` with ``origin + t direction`` on the DEM.
 
     Newton's method on ``f(t) = o_z + t d_z - h(o_xy + t d_xy)``, started on the DEM's mean
-    height; rays leaving the DEM raise a one-line error naming ``what``.
+    height; rays where it has not converged to a centimetre (steep relief, oblique rays) are
+    bisected between the DEM's highest and lowest heights. Rays leaving the DEM raise a one-line
+    error naming ``what``.
     """
     o = np.asarray(origin, float)
     d = np.asarray(direction, float)
     t = (float(dem.mean_height) - o[..., 2]) / d[..., 2]
-    for _ in range(iterations):
-        xy = o[..., :2] + t[..., None] * d[..., :2]
+
+    def f_and_slope(tt):
+        xy = o[..., :2] + tt[..., None] * d[..., :2]
         h, hx, hy = dem.sample(xy[..., 0], xy[..., 1], strict=False)
-        f = o[..., 2] + t * d[..., 2] - h
-        fp = d[..., 2] - hx * d[..., 0] - hy * d[..., 1]
+        return o[..., 2] + tt * d[..., 2] - h, d[..., 2] - hx * d[..., 0] - hy * d[..., 1]
+
+    for _ in range(iterations):
+        f, fp = f_and_slope(t)
         t = t - f / fp
+    f, _ = f_and_slope(t)
+    bad = ~(np.abs(f) < 0.01)
+    if bad.any():
+        top, bottom = float(np.nanmax(dem.heights)), float(np.nanmin(dem.heights))
+        ob, db = o[bad] if o.shape == d.shape else np.broadcast_to(o, d.shape)[bad], d[bad]
+        lo = (top + 1.0 - ob[:, 2]) / db[:, 2]        # above every hill: f > 0
+        hi = (bottom - 1.0 - ob[:, 2]) / db[:, 2]     # below every valley: f < 0
+        for _ in range(40):
+            mid = 0.5 * (lo + hi)
+            xy = ob[:, :2] + mid[:, None] * db[:, :2]
+            h, _, _ = dem.sample(xy[:, 0], xy[:, 1], strict=False)
+            above = ob[:, 2] + mid * db[:, 2] - h > 0
+            lo, hi = np.where(above, mid, lo), np.where(above, hi, mid)
+        t = np.array(t, float)
+        t[bad] = 0.5 * (lo + hi)
     xy = o[..., :2] + t[..., None] * d[..., :2]
     require(bool(dem.covers(xy[..., 0], xy[..., 1]).all()), f"the DEM does not cover {what}")
     return t

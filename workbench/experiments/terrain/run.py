@@ -17,6 +17,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from workbench.errors import require
+from workbench.estimation.angles import wrap
 from workbench.experiments.terrain import halftone, navigation, search
 from workbench.experiments.terrain.config import TerrainConfig
 from workbench.experiments.terrain.scene import Scene, synthetic_scene
@@ -112,11 +113,11 @@ class RunSummary:
 def summarise(res: RunResult, run: int) -> RunSummary:
     sc = res.scene
     pos = {n: sc.position[1] - e.position[1] for n, e in res.estimates.items()}
-    att = {n: sc.angles[1] - e.angles[1] for n, e in res.estimates.items()}
+    att = {n: wrap(sc.angles[1] - e.angles[1]) for n, e in res.estimates.items()}
     rm = {n: halftone.rmse(g) for n, g in res.ground_errors.items()}
     sec = {n: e.seconds for n, e in res.estimates.items()}
     hit = None
-    if res.search is not None:
+    if res.search is not None and res.search.kind == "grid":
         s = res.search
         spacing = np.ptp(s.centres, axis=0) / np.maximum(1, np.array([len(np.unique(c)) - 1 for c in s.centres.T]))
         searched = np.ptp(s.centres, axis=0) > 0

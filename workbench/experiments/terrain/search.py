@@ -308,6 +308,7 @@ class SearchResult:
     winner: int
     nodes: int
     chunk: int
+    kind: str = "grid"
 
     @property
     def centre(self) -> np.ndarray:
@@ -345,4 +346,4 @@ def run(p: Problem, hyp: Hypotheses, bank: str = "batch", budget_mb: float = 256
             functional[sl], refined[sl], _ = batch(r0, h, hyp.centres[sl], hyp.prior, p.r)
         if progress:
             progress(sl.stop - sl.start)
-    return SearchResult(hyp.centres, functional, refined, int(np.argmin(functional)), len(p.nodes), step)
+    return SearchResult(hyp.centres, functional, refined, int(np.argmin(functional)), len(p.nodes), step, hyp.kind)
