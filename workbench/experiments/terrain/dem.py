@@ -140,7 +140,7 @@ def read_geotiff(path: Path) -> Dem:
     the tie point is the outer corner of the top-left pixel, so node (0, 0) is half a pixel in)."""
     import cv2
 
-    cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_ERROR)  # it warns of every GeoTIFF tag
+    cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_SILENT)  # it warns of every GeoTIFF tag; errors are ours
     path = Path(path)
     require(path.is_file(), f"DEM not found: {path}")
     tags = geotiff_tags(path)

@@ -70,7 +70,7 @@ def read_orientation(path: Path) -> dict[str, tuple[np.ndarray, np.ndarray]]:
 def _frame(path: Path, size: tuple[int, int]) -> np.ndarray:
     import cv2
 
-    cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_ERROR)  # it warns of every GeoTIFF tag
+    cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_SILENT)  # it warns of every GeoTIFF tag; errors are ours
     require(path.is_file(), f"frame not found: {path}")
     img = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
     require(img is not None, f"cannot read the frame {path.name} (corrupt TIFF?)")
