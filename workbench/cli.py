@@ -244,6 +244,13 @@ def omni(
     robot: int = typer.Option(None, help="mrclam: the robot, 1..5 where the folder has it [1]."),
     start_time: float = typer.Option(None, help="mrclam: start this many seconds into the log."),
     end_time: float = typer.Option(None, help="mrclam: end this many seconds into the log."),
+    noise_per_second: bool = typer.Option(None, "--noise-per-second/--noise-per-step",
+                                          help="Odometry noise as densities or per step [paper: per step]."),
+    lm_every: float = typer.Option(None, help="GTSAM: a damped LM pass every this many s (0 = off) [mrclam 20]."),
+    ekf_init: str = typer.Option(None, help="EKF landmark init: ut (the paper's gate) | linear [mrclam linear]."),
+    second_order: bool = typer.Option(None, "--second-order/--first-order",
+                                      help="EKF: second-order bearing terms in the update [mrclam on]."),
+    huber: float = typer.Option(None, help="GTSAM: Huber threshold on bearing factors (0 = off)."),
 ) -> None:
     """Paper 000: odometer + hemispherical camera; bearing-only EKF-SLAM against GTSAM."""
     from workbench.experiments.omni.config import make_config
@@ -256,24 +263,45 @@ def omni(
         drop_after=drop_after, kappa=kappa, nis_gate=nis_gate, graph_parallax_deg=graph_parallax,
         relin_threshold=relin_threshold, settle=settle, data=data, robot=robot, start_time=start_time,
         end_time=end_time, estimators=tuple(e.strip() for e in estimators.split(",") if e.strip()),
+        noise_per_second=noise_per_second, lm_every=lm_every, ekf_init=ekf_init, ekf_second_order=second_order,
+        huber=huber,
     )
     run_omni(cfg, out, force, metrics, spawn, serve, jobs, export_tum)
 
 
 def run_terrain(cfg, out: Path | None, force: bool, metrics_path: Path | None, spawn: bool,
-                serve: bool, jobs: int | None, quiet: bool = False) -> dict:
-    """Validate, check outputs, run, record; returns the metrics dict."""
-    from workbench.experiments.terrain import record, report, run
+                serve: bool, jobs: int | None, quiet: bool = False, sweep: Path | None = None,
+                sweep_sizes: tuple[str, ...] | None = None) -> dict:
+    """Validate, check outputs, run, record; returns the metrics dict. With ``sweep``, run the
+    paper's grid instead and write its table, CSV and plots into that folder."""
+    from workbench.experiments.terrain import grid, record, report, run
     from workbench.recording import stream
 
     cfg.validate()
+    if sweep is not None:
+        sizes = sweep_sizes or grid.SIZES
+        for size in sizes:
+            cfg.size = size
+            cfg.validate()
+        stream.check_plain_output(Path(sweep) / "grid.md", force, "grid table")
+        stream.check_plain_output(Path(sweep) / "grid.csv", force, "grid CSV")
+        t0 = time.perf_counter()
+        bar, task = _progress(cfg.runs * len(sizes), "terrain grid")
+        with bar:
+            rows = grid.run_grid(cfg, tuple(sizes), jobs, progress=lambda n: bar.advance(task, n))
+        written = grid.write(rows, cfg, Path(sweep))
+        if not quiet:
+            typer.echo(grid.table(rows, cfg))
+            typer.echo(f"\nwritten: {', '.join(str(p) for p in written)}\n"
+                       f"{cfg.runs} run(s) per cell in {time.perf_counter() - t0:.1f} s")
+        return {"rows": rows, "written": [str(p) for p in written]}
     out = stream.check_output(out or RECORDINGS / "terrain.rrd", force)
     if metrics_path is not None:
         metrics_path = stream.check_plain_output(metrics_path, force, "metrics file")
     t0 = time.perf_counter()
     bar, task = _progress(cfg.runs, f"terrain {cfg.scene} {cfg.mode}")
     with bar:
-        first = run.run_once(cfg, 0, trace=True)
+        first = run.run_once(cfg, 0, trace=True, threads=min(2, jobs or 2))
         runs = run.monte_carlo(cfg, first=first, jobs=jobs, progress=lambda n: bar.advance(task, n))
     stats = run.statistics(cfg, runs, first.scene.label)
     stats["wall_seconds"] = time.perf_counter() - t0
@@ -327,6 +355,8 @@ def terrain(
     image_noise: float = typer.Option(0.01, help="synthetic: image noise sigma (irradiance 0..1)."),
     data: Path = typer.Option(None, help="ngi: the folder [default: <data root>/ngi]."),
     pair: str = typer.Option("0182,0184", help="ngi: the two frames, image I first."),
+    sweep: Path = typer.Option(None, help="Run the paper's grid instead; write grid.md, grid.csv, PNGs here."),
+    sweep_sizes: str = typer.Option("100x100,200x200,400x500", help="sweep: the image sizes."),
 ) -> None:
     """Paper 001: aerial stereo pair + DEM; recurrent-search estimation against GTSAM BA."""
     from workbench.experiments.terrain.config import TerrainConfig
@@ -341,7 +371,8 @@ def terrain(
         pair=tuple(p.strip() for p in pair.split(",")),
         estimators=tuple(e.strip() for e in estimators.split(",") if e.strip()),
     )
-    run_terrain(cfg, out, force, metrics, spawn, serve, jobs)
+    run_terrain(cfg, out, force, metrics, spawn, serve, jobs, sweep=sweep,
+                sweep_sizes=tuple(x.strip() for x in sweep_sizes.split(",") if x.strip()))
 
 
 @app.command()

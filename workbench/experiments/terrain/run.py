@@ -55,7 +55,7 @@ def make_scene(cfg: TerrainConfig, rng: np.random.Generator) -> Scene:
 
 
 def run_estimators(cfg: TerrainConfig, scene: Scene, meas: Estimate, rng: np.random.Generator,
-                   search_progress: Callable[[int], None] | None = None
+                   search_progress: Callable[[int], None] | None = None, threads: int = 1
                    ) -> tuple[dict[str, Estimate], search.SearchResult | None]:
     """Every selected estimator on the same measured pair, each timed."""
     out: dict[str, Estimate] = {"navigation": meas}
@@ -66,7 +66,7 @@ def run_estimators(cfg: TerrainConfig, scene: Scene, meas: Estimate, rng: np.ran
         problem = search.make_problem(cfg, scene.k, scene.dem, meas.position, meas.angles, scene.images,
                                       scene.interval)
         hyp = search.hypotheses(cfg, rng)
-        result = search.run(problem, hyp, cfg.bank, cfg.chunk_mb, progress=search_progress)
+        result = search.run(problem, hyp, cfg.bank, cfg.chunk_mb, progress=search_progress, threads=threads)
         seconds = time.perf_counter() - t0
         for name, state in ((SEARCH, result.centre), (REFINED, result.refinement)):
             pos, ang = navigation.corrected(meas.position, meas.angles, m @ state)
@@ -82,13 +82,14 @@ def run_estimators(cfg: TerrainConfig, scene: Scene, meas: Estimate, rng: np.ran
 
 
 def run_once(cfg: TerrainConfig, run: int, trace: bool = False,
-             search_progress: Callable[[int], None] | None = None) -> RunResult:
+             search_progress: Callable[[int], None] | None = None, threads: int = 1) -> RunResult:
+    """One run; ``trace`` keeps full-resolution ground error maps (for the recording)."""
     rng = np.random.default_rng([cfg.seed, run])
     scene = make_scene(cfg, rng)
     state = navigation.draw_state(cfg, rng)
     pose_err = navigation.error_map(cfg.mode, scene.interval) @ state
     meas = Estimate(*navigation.measured(scene.position, scene.angles, pose_err))
-    estimates, result = run_estimators(cfg, scene, meas, rng, search_progress)
+    estimates, result = run_estimators(cfg, scene, meas, rng, search_progress, threads)
     step = 1 if trace else max(1, min(scene.k.width, scene.k.height) // 100)
     truth = (scene.position[1], scene.angles[1])
     ground = {name: halftone.ground_error(scene.dem, scene.k, truth, (e.position[1], e.angles[1]), step)
