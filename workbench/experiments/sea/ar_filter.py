@@ -16,7 +16,9 @@ Readings of the paper (spec/sea.md):
   (no model yet). Positions ahead follow from the forecast angles by (3)-(5), seen from the
   observer's predicted position; a forecast elevation at or above the horizon has none.
 * A track loss (no measurement) coasts: ``theta`` is frozen, the regressor takes the
-  one-step forecast, and the estimate is that forecast.
+  one-step forecast, and the estimate is that forecast. A loss within the first n steps
+  has no forecast (no model yet): the estimate is NaN there, and a sample whose regressor
+  has such a hole passes through unfiltered, as the first n do.
 
 Reading A is computed with the closed forms of :mod:`workbench.estimation.diffuse_rls`
 (a test shows they equal the recursions); reading B needs the sequential loop.
@@ -89,7 +91,10 @@ def _closed(y: np.ndarray, order: int, cfg: SeaConfig, windowed: bool):
     theta[start:] = theta_all[start:]
     est = np.einsum("tp,tp->t", np.nan_to_num(H), theta)
     est[:order] = y[:order]                 # the first n samples pass through unfiltered
-    est[~seen] = series[~seen]              # coasting: the forecast
+    # so does a sample whose regressor has a hole (a gap so early that it has no forecast)
+    nohist = ~np.all(np.isfinite(H), axis=1) & seen
+    est[nohist] = y[nohist]
+    est[~seen] = series[~seen]              # coasting: the forecast (NaN where there is none)
     return est, theta, series
 
 
@@ -122,6 +127,9 @@ def _sequential(y: np.ndarray, order: int, cfg: SeaConfig, windowed: bool):
                 W = cfg.lam * W + np.outer(h, h)
                 th = th + np.linalg.pinv(W, rtol=drls.RTOL) @ h * (y[t] - h @ th)
             est[t] = h @ th
+        elif np.isfinite(y[t]):              # a regressor with a hole: pass through, as the first n
+            W = cfg.lam * W
+            est[t] = y[t]
         else:
             W = cfg.lam * W
             est[t] = h @ th if np.all(np.isfinite(h)) else np.nan
