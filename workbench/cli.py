@@ -86,14 +86,15 @@ def run_sea(cfg, out: Path | None, force: bool, metrics_path: Path | None, spawn
     t0 = time.perf_counter()
     bar, task = _progress(cfg.runs, f"sea {cfg.scenario}")
     with bar:
-        first = run.run_once(cfg, 0, covariances=True)
+        first = run.run_once(cfg, 0, covariances=True, keep_frames=cfg.from_images)
         runs = run.monte_carlo(cfg, first=first, jobs=jobs,
                                progress=lambda n: bar.advance(task, n))
     stats = run.statistics(cfg, runs, first.data.label)
     stats["wall_seconds"] = time.perf_counter() - t0
     table = report.table(stats)
     with stream.recording(out, "sea", cfg.to_json(), cfg.seed,
-                          record.blueprint(list(first.estimates)), spawn=spawn, serve=serve) as rec:
+                          record.blueprint(list(first.estimates), images=cfg.from_images),
+                          spawn=spawn, serve=serve) as rec:
         record.record(rec, first, runs, table)
     stats["recording"] = str(out)
     if metrics_path is not None:
@@ -137,9 +138,23 @@ def sea(
     mmsi: int = typer.Option(None, help="ais: the ship [default: the most manoeuvring one]."),
     data: Path = typer.Option(None, help="ais: the AIS CSV [default: <data root>/ais/...]."),
     ais_range: float = typer.Option(1000.0, help="ais: camera stand-off from the track, m."),
+    from_images: bool = typer.Option(False, help="Render camera frames and take the angles from them."),
+    image_size: str = typer.Option("1920x1080", help="Frame size WIDTHxHEIGHT (70 deg wide)."),
+    frame_stride: int = typer.Option(0, help="Record every n-th frame [0: 1 up to 960 px wide, else 2]."),
+    bad_frames: int = typer.Option(0, help="Replace this many frames by bad ones (size, type, sky, empty)."),
+    tilt: float = typer.Option(0.3, help="Platform tilt amplitude, deg."),
+    roll: float = typer.Option(0.3, help="Platform roll amplitude, deg."),
+    pixel_noise: float = typer.Option(2.0, help="Sensor noise, grey levels."),
 ) -> None:
     """Paper 002: an object on the sea seen by a monocular camera."""
+    from workbench.errors import WorkbenchError
+    from workbench.experiments.sea.camera import parse_size
     from workbench.experiments.sea.config import SeaConfig
+
+    try:
+        size = parse_size(image_size)
+    except ValueError as exc:
+        raise WorkbenchError(f"--image-size: {exc}") from None
 
     is_ais = scenario == "ais"
     cfg = SeaConfig(
@@ -152,6 +167,8 @@ def sea(
         duration=duration if duration is not None else (180.0 if is_ais else 72.0),
         dt=dt, ekf_gate=ekf_gate, robust=robust, mmsi=mmsi, data=data, ais_range=ais_range,
         estimators=tuple(e.strip() for e in estimators.split(",") if e.strip()),
+        from_images=from_images, image_size=size, frame_stride=frame_stride, bad_frames=bad_frames,
+        tilt_deg=tilt, roll_deg=roll, pixel_noise=pixel_noise,
     )
     run_sea(cfg, out, force, metrics, spawn, serve, jobs)
 

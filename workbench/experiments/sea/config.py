@@ -55,6 +55,16 @@ class SeaConfig:
     data: Path | None = None
     ais_range: float = 1000.0
     estimators: tuple[str, ...] = field(default=ESTIMATORS)
+    # the image stage (``--from-images``): frames rendered from the truth, angles detected
+    from_images: bool = False
+    image_size: tuple[int, int] = (1920, 1080)
+    fov_deg: float = 70.0
+    pan_deg: float | None = None      # camera axis from the course; None: the middle of the run's azimuths
+    tilt_deg: float = 0.3             # amplitude of the platform's tilt
+    roll_deg: float = 0.3             # amplitude of the platform's roll
+    pixel_noise: float = 2.0          # sensor noise, grey levels (1 sigma)
+    bad_frames: int = 0               # frames replaced by bad ones (wrong size / type, all sky, empty)
+    frame_stride: int = 0             # frames recorded every this many steps; 0: 1 up to 960 px wide, else 2
 
     @property
     def steps(self) -> int:
@@ -90,12 +100,22 @@ class SeaConfig:
                 f"choose from {', '.join(ESTIMATORS)}")
         require(len(self.estimators) > 0, "no estimator selected")
         require(self.steps > params + 1, "the run is too short for the AR models")
+        w, h = self.image_size
+        require(160 <= w <= 7680 and 90 <= h <= 4320,
+                f"--image-size must be within 160x90 .. 7680x4320, got {w}x{h}")
+        require(1.0 <= self.fov_deg <= 150.0, f"--fov must be in [1, 150] deg, got {self.fov_deg}")
+        for name in ("tilt_deg", "roll_deg", "pixel_noise"):
+            require(getattr(self, name) >= 0, f"--{_flag(name.replace('_deg', ''))} must not be negative")
+        require(self.tilt_deg <= 10 and self.roll_deg <= 10, "--tilt and --roll are amplitudes of at most 10 deg")
+        require(self.frame_stride >= 0, f"--frame-stride must not be negative, got {self.frame_stride}")
+        require(0 <= self.bad_frames <= self.steps, f"--bad-frames must be in [0, {self.steps}]")
         return self
 
     def to_json(self) -> dict:
         d = asdict(self)
         d["data"] = str(self.data) if self.data is not None else None
         d["estimators"] = list(self.estimators)
+        d["image_size"] = list(self.image_size)
         return d
 
 

@@ -8,10 +8,18 @@ Entity layout (timeline ``time``, seconds of the recorded run):
 * ``errors/{x,y,alpha,beta}/<estimator>``;
 * ``monte_carlo/position_rmse/<estimator>`` (RMSE over runs against time),
   ``monte_carlo/nees/ekf`` with ``monte_carlo/nees/bound_{lo,hi}``;
-* ``summary`` (the results table as markdown).
+* ``summary`` (the results table as markdown);
+* with ``--from-images``: ``camera/image`` (JPEG frames, every ``frame_stride`` steps),
+  ``camera/horizon`` (the detected horizon), ``camera/object`` (the blob's box),
+  ``camera/waterline`` (the detected point), ``camera/truth`` (the true target point
+  projected), ``camera/gate`` (the tracking gate), ``camera/status`` (a text entry for each
+  frame without a detection, with the reason), ``images/detected`` (1 / 0 per step) and
+  ``images/error/{alpha,beta}`` (arcmin).
 """
 
 from __future__ import annotations
+
+import warnings
 
 import numpy as np
 import rerun as rr
@@ -25,7 +33,7 @@ from workbench.recording import draw
 TL = "time"
 
 
-def blueprint(names: list[str]) -> rrb.Blueprint:
+def blueprint(names: list[str], images: bool = False) -> rrb.Blueprint:
     """Map on the left; angles, range and errors on the right; Monte Carlo and table in tabs."""
     series = rrb.Vertical(
         rrb.TimeSeriesView(origin="/series/alpha", name="azimuth alpha (arcmin)"),
@@ -42,12 +50,21 @@ def blueprint(names: list[str]) -> rrb.Blueprint:
         rrb.TimeSeriesView(origin="/monte_carlo/position_rmse", name="position RMSE over runs (m)"),
         rrb.TimeSeriesView(origin="/monte_carlo/nees", name="EKF NEES over runs, 95 % band"),
     )
+    tabs = [series, errors, mc, rrb.TextDocumentView(origin="/summary", name="results")]
+    left: rrb.Container | rrb.SpaceView = rrb.Spatial3DView(origin="/map", name="map (top-down, m)")
+    if images:
+        left = rrb.Vertical(
+            left,
+            rrb.Spatial2DView(origin="/camera", name="camera (detections)"),
+            row_shares=[1, 1],
+        )
+        tabs.insert(3, rrb.Vertical(
+            rrb.TimeSeriesView(origin="/images/error", name="image stage error (arcmin)"),
+            rrb.TimeSeriesView(origin="/images/detected", name="detected"),
+            rrb.TextLogView(origin="/camera/status", name="no detection"),
+            name="image stage"))
     return rrb.Blueprint(
-        rrb.Horizontal(
-            rrb.Spatial3DView(origin="/map", name="map (top-down, m)"),
-            rrb.Tabs(series, errors, mc, rrb.TextDocumentView(origin="/summary", name="results")),
-            column_shares=[3, 2],
-        ),
+        rrb.Horizontal(left, rrb.Tabs(*tabs), column_shares=[3, 2]),
         collapse_panels=True,
     )
 
@@ -94,7 +111,8 @@ def record(rec: rr.RecordingStream, first: RunResult, runs: list[RunSummary], ta
 
     for name in first.estimates:
         E = np.stack([r.errors[name][:, :2] for r in runs])
-        with np.errstate(invalid="ignore"):
+        with np.errstate(invalid="ignore"), warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)  # steps no run has (a bad frame in each)
             curve = np.sqrt(np.nanmean(np.sum(E**2, axis=2), axis=0)) if np.isfinite(E).any() else None
         if curve is not None:
             draw.scalars(rec, f"/monte_carlo/position_rmse/{name}", TL, t, curve, name, draw.color(name))
@@ -108,3 +126,55 @@ def record(rec: rr.RecordingStream, first: RunResult, runs: list[RunSummary], ta
         draw.scalars(rec, "/monte_carlo/nees/bound_hi", TL, t, np.full_like(t, hi), "95 % high",
                      (150, 150, 150), 1.0)
     rec.log("/summary", rr.TextDocument(table_md, media_type=rr.MediaType.MARKDOWN), static=True)
+    if first.images is not None:
+        record_images(rec, first)
+
+
+def record_images(rec: rr.RecordingStream, first: RunResult) -> None:
+    """The image stage of run 0: frames with the detections over them, flags and errors."""
+    st, d = first.images, first.data
+    t = d.t
+    s = st.frame_scale
+    steps = st.frame_steps
+    if len(steps):
+        rec.send_columns("/camera/image", indexes=[draw.times(TL, t[steps])],
+                         columns=rr.EncodedImage.columns(blob=st.frames, media_type=["image/jpeg"] * len(steps)))
+    W = st.camera.width
+    ok = np.isfinite(st.horizon).all(axis=1)
+    ends = np.array([0.0, W - 1.0])
+    if ok.any():
+        v = st.horizon[ok, :1] + st.horizon[ok, 1:] * (ends[None, :] - st.camera.cx)
+        strips = np.stack([np.broadcast_to(ends, v.shape), v], axis=-1) * s
+        rec.log("/camera/horizon", rr.LineStrips2D.from_fields(colors=[(255, 220, 0)], radii=[1.0]), static=True)
+        rec.send_columns("/camera/horizon", indexes=[draw.times(TL, t[ok])],
+                         columns=rr.LineStrips2D.columns(strips=list(strips)))
+    _boxes(rec, "/camera/object", t, st.box * s, (255, 60, 60), "object")
+    _boxes(rec, "/camera/gate", t, st.gate * s, (120, 200, 255), None)
+    for path, xy, rgb in (("/camera/waterline", st.pixel, (255, 60, 60)), ("/camera/truth", st.true_pixel,
+                                                                          (230, 230, 230))):
+        good = np.isfinite(xy).all(axis=1)
+        rec.log(path, rr.Points2D.from_fields(colors=[rgb], radii=[2.0]), static=True)
+        if good.any():
+            rec.send_columns(path, indexes=[draw.times(TL, t[good])],
+                             columns=rr.Points2D.columns(positions=xy[good] * s))
+    missed = np.flatnonzero(~st.detected)
+    if missed.size:
+        texts = [st.reasons[k] or "no detection" for k in missed]
+        # a miss where the object was in view is a warning; one where it was hidden or outside, information
+        levels = ["WARN" if (k in st.bad or st.visible[k]) else "INFO" for k in missed]
+        rec.send_columns("/camera/status", indexes=[draw.times(TL, t[missed])],
+                         columns=rr.TextLog.columns(text=texts, level=levels))
+    draw.scalars(rec, "/images/detected", TL, t, st.detected.astype(float), "detected", (60, 200, 90), 1.0)
+    e = st.errors(d)
+    draw.scalars(rec, "/images/error/alpha", TL, t, to_arcmin(e[:, 0]), "alpha", (255, 170, 0), 1.0)
+    draw.scalars(rec, "/images/error/beta", TL, t, to_arcmin(e[:, 1]), "beta", (0, 210, 200), 1.0)
+
+
+def _boxes(rec: rr.RecordingStream, path: str, t: np.ndarray, box: np.ndarray, rgb, label: str | None) -> None:
+    good = np.isfinite(box).all(axis=1)
+    rec.log(path, rr.Boxes2D.from_fields(colors=[rgb], radii=[1.0]), static=True)
+    if good.any():
+        b = box[good]
+        rec.send_columns(path, indexes=[draw.times(TL, t[good])],
+                         columns=rr.Boxes2D.columns(centers=(b[:, :2] + b[:, 2:]) / 2,
+                                                    half_sizes=(b[:, 2:] - b[:, :2]) / 2 + 1.0))

@@ -15,10 +15,25 @@ def table(stats: dict) -> str:
             "| bias alpha ' | bias beta ' | s/run |")
     lines = [f"**sea / {stats['scenario']}** ({stats.get('label', '')}), {runs} run(s), "
              f"seed {stats['seed']}; mean +- std over runs", "", head, "|" + "---|" * 10]
+    im = stats.get("images")
+    if im is not None:
+        cells = ["", "", _pm(im["rmse"]["alpha"], im["rmse_std"]["alpha"], runs),
+                 _pm(im["rmse"]["beta"], im["rmse_std"]["beta"], runs), "", "",
+                 _pm(im["bias"]["alpha"], im["bias_std"]["alpha"], runs),
+                 _pm(im["bias"]["beta"], im["bias_std"]["beta"], runs)]
+        lines.append("| image stage (angles) | " + " | ".join(cells) + " | |")
+        cfg = stats["config"]
+        lines.append(f"| simulated angles (noise) | | | {cfg['sigma_alpha_arcmin']:g} | {cfg['sigma_beta_arcmin']:g} "
+                     "| | | 0 | 0 | |")
+    tag = " (images)" if im is not None else ""
     for name, e in stats["estimators"].items():
         cells = [_pm(e["rmse"][c], e["rmse_std"][c], runs) for c in COLS]
         cells += [_pm(e["bias"][c], e["bias_std"][c], runs) for c in COLS]
-        lines.append(f"| {name} | " + " | ".join(cells) + f" | {e['seconds']:.3f} |")
+        lines.append(f"| {name}{tag} | " + " | ".join(cells) + f" | {e['seconds']:.3f} |")
+    for name, e in stats.get("simulated", {}).get("estimators", {}).items():
+        cells = [_pm(e["rmse"][c], e["rmse_std"][c], runs) for c in COLS]
+        cells += [_pm(e["bias"][c], e["bias_std"][c], runs) for c in COLS]
+        lines.append(f"| {name} (simulated) | " + " | ".join(cells) + " | |")
     if stats["scenario"] in ("paper", "track-loss", "impulse"):
         for name, row in TABLE2.items():
             cells = [f"{row['rmse'][c]:g}" for c in COLS] + [f"{row['bias'][c]:g}" for c in COLS]
@@ -41,7 +56,22 @@ def table(stats: dict) -> str:
             r = e["rmse_during_loss"]
             bits.append(f"during the loss rmse x {r['x']:.1f} m, y {r['y']:.1f} m")
         extra.append(f"- {name}: " + "; ".join(bits))
+    if im is not None:
+        w, h = im["size"]
+        fps = im["frames_per_second"]
+        reasons = ", ".join(f"{k} {v}" for k, v in im["no_detection"].items()) or "none"
+        extra.append(
+            f"- image stage ({w}x{h}, {im['arcmin_per_px']:.2f}' per px, pan {im['pan_deg']:g} deg): "
+            f"detected {100 * im['detection_rate']:.1f} % of {im['visible_frames']} frames in view, "
+            f"{im['false_detections']} false; waterline rmse u {im['rmse_px']['u']:.3f} px, "
+            f"v {im['rmse_px']['v']:.3f} px (bias {im['bias_px']['u']:.3f}, {im['bias_px']['v']:.3f}); "
+            f"horizon rmse {_num(im['horizon']['rmse_px'])} px; detection {fps['detect']:.0f} frames/s "
+            f"({fps['render_and_detect']:.0f} with rendering); no detection: {reasons}")
     return "\n".join(lines + [""] + extra)
+
+
+def _num(x: float | None) -> str:
+    return "n/a" if x is None else f"{x:.3f}"
 
 
 def _forecast(f: dict) -> str:

@@ -16,7 +16,7 @@ import numpy as np
 
 from workbench.estimation import metrics
 from workbench.estimation.angles import to_arcmin, wrap
-from workbench.experiments.sea import ais, ar_filter, ekf, geometric, smoother
+from workbench.experiments.sea import ais, ar_filter, ekf, geometric, images, smoother
 from workbench.experiments.sea.config import SeaConfig
 from workbench.experiments.sea.estimate import Estimate
 from workbench.experiments.sea.paper import TABLE2
@@ -32,6 +32,9 @@ class RunResult:
     data: SeaData
     estimates: dict[str, Estimate]
     errors: dict[str, np.ndarray] = field(default_factory=dict)
+    images: images.ImageStage | None = None                  # the image stage (``from_images``)
+    simulated: dict[str, np.ndarray] | None = None          # errors of every estimator on simulated angles
+    scenario_seen: np.ndarray | None = None                 # the scenario's own seen mask
 
 
 def make_data(cfg: SeaConfig, run: int) -> SeaData:
@@ -81,10 +84,18 @@ def errors(data: SeaData, est: Estimate) -> np.ndarray:
     ], axis=1)
 
 
-def run_once(cfg: SeaConfig, run: int, covariances: bool = False) -> RunResult:
+def run_once(cfg: SeaConfig, run: int, covariances: bool = False, keep_frames: bool = False) -> RunResult:
+    """One run. With ``from_images`` the estimators take the image stage's angles, and run
+    once more on the simulated angles of the same run for comparison."""
     data = make_data(cfg, run)
-    est = run_estimators(data, cfg, covariances)
-    return RunResult(data, est, {name: errors(data, e) for name, e in est.items()})
+    if not cfg.from_images:
+        est = run_estimators(data, cfg, covariances)
+        return RunResult(data, est, {name: errors(data, e) for name, e in est.items()})
+    stage = images.measure(data, cfg, run, keep_frames)
+    img = images.from_stage(data, stage)
+    est = run_estimators(img, cfg, covariances)
+    sim = {name: errors(data, e) for name, e in run_estimators(data, cfg).items()}
+    return RunResult(img, est, {name: errors(img, e) for name, e in est.items()}, stage, sim, data.seen)
 
 
 @dataclass
@@ -100,6 +111,8 @@ class RunSummary:
     seen: np.ndarray
     t: np.ndarray
     transient: dict[str, np.ndarray] = field(default_factory=dict)
+    simulated: dict[str, np.ndarray] | None = None  # errors on simulated angles (``from_images``)
+    image: dict | None = None                       # the image stage's errors and flags
 
 
 def summarise(result: RunResult, cfg: SeaConfig, run: int) -> RunSummary:
@@ -116,11 +129,21 @@ def summarise(result: RunResult, cfg: SeaConfig, run: int) -> RunSummary:
         if est.forecast is not None:
             fc[name], unusable[name] = forecast_errors(data, est)
     transient = {}
-    if cfg.scenario == "impulse":
+    if cfg.scenario == "impulse" and not cfg.from_images:  # (it would render the run again)
         transient = impulse_transient(result, cfg, run)
+    image = None
+    st = result.images
+    if st is not None:
+        image = {"errors": st.errors(data), "detected": st.detected, "visible": st.visible,
+                 "horizon": st.true_horizon[:, 0] - st.horizon[:, 0],
+                 "tilt": st.tilt - st.tilt_est, "roll": st.roll - st.roll_est,
+                 "reasons": [r.split(":")[0] for r in st.reasons if r],
+                 "seconds": (st.seconds_render, st.seconds_detect), "arcmin_per_px": st.camera.arcmin_per_pixel,
+                 "size": (st.camera.width, st.camera.height), "pan": st.camera.pan}
+    seen = result.scenario_seen if result.scenario_seen is not None else data.seen
     return RunSummary(run, result.errors, nees, fc, unusable,
-                      {n: e.seconds for n, e in result.estimates.items()}, data.seen, data.t,
-                      transient)
+                      {n: e.seconds for n, e in result.estimates.items()}, seen, data.t,
+                      transient, result.simulated, image)
 
 
 def forecast_errors(data: SeaData, est: Estimate) -> tuple[np.ndarray, np.ndarray]:
@@ -234,7 +257,59 @@ def statistics(cfg: SeaConfig, runs: list[RunSummary], label: str = "") -> dict:
             entry["forecast"] = _forecast_stats(cfg, F, U)
             entry["forecast_rmse"] = {**entry["forecast"]["position"]["rmse"], "steps": cfg.horizon}
         result["estimators"][name] = entry
+    if runs[0].image is not None:
+        result["images"] = image_statistics(runs)
+    if runs[0].simulated is not None:
+        sim = [replace(r, errors=r.simulated, nees={}, forecast_err={}, forecast_unusable={}, transient={},
+                       simulated=None, image=None) for r in runs]
+        result["simulated"] = {"note": "the same runs' estimators on the simulated angles",
+                               "estimators": statistics(cfg, sim, label)["estimators"]}
     return result
+
+
+def image_statistics(runs: list[RunSummary]) -> dict:
+    """The image stage over runs: angle and pixel errors (truth minus measurement) where detected,
+    per-run bias and RMSE averaged over runs (with their spread); the detection rate over the
+    frames where the object was drawn inside the frame."""
+    E = np.stack([r.image["errors"] for r in runs])              # (runs, T, 4)
+    E = E * np.array([to_arcmin(1.0), to_arcmin(1.0), 1.0, 1.0])
+    with np.errstate(invalid="ignore"):
+        b = np.nanmean(E, axis=1)
+        rm = np.sqrt(np.nanmean(E**2, axis=1))
+    det = np.stack([r.image["detected"] for r in runs])
+    vis = np.stack([r.image["visible"] for r in runs])
+    hz = np.stack([r.image["horizon"] for r in runs])
+    tilt = to_arcmin(np.stack([r.image["tilt"] for r in runs]))
+    roll = to_arcmin(np.stack([r.image["roll"] for r in runs]))
+    reasons: dict[str, int] = {}
+    for r in runs:
+        for why in r.image["reasons"]:
+            reasons[why] = reasons.get(why, 0) + 1
+    render = np.sum([r.image["seconds"][0] for r in runs])
+    detect = np.sum([r.image["seconds"][1] for r in runs])
+    frames = det.size
+    pair = ("alpha", "beta")
+
+    def named(v, keys):
+        return {k: float(x) for k, x in zip(keys, v, strict=True)}
+
+    return {
+        "size": list(runs[0].image["size"]), "arcmin_per_px": runs[0].image["arcmin_per_px"],
+        "pan_deg": float(np.rad2deg(runs[0].image["pan"])),
+        "errors": "truth minus measurement, where detected",
+        "rmse": named(rm.mean(axis=0)[:2], pair), "rmse_std": named(rm.std(axis=0)[:2], pair),
+        "bias": named(b.mean(axis=0)[:2], pair), "bias_std": named(b.std(axis=0)[:2], pair),
+        "rmse_px": named(rm.mean(axis=0)[2:], ("u", "v")), "bias_px": named(b.mean(axis=0)[2:], ("u", "v")),
+        "detection_rate": float((det & vis).sum() / max(vis.sum(), 1)),
+        "false_detections": int((det & ~vis).sum()), "frames": int(frames), "visible_frames": int(vis.sum()),
+        "no_detection": reasons,
+        "horizon": {"rmse_px": _rms(hz[np.isfinite(hz)]), "bias_px": _stat(np.mean, hz[np.isfinite(hz)]),
+                    "tilt_rmse_arcmin": _rms(tilt[np.isfinite(tilt)]),
+                    "roll_rmse_arcmin": _rms(roll[np.isfinite(roll)])},
+        "seconds_per_frame": {"render": float(render / frames), "detect": float(detect / frames)},
+        "frames_per_second": {"detect": float(frames / max(detect, 1e-9)),
+                              "render_and_detect": float(frames / max(render + detect, 1e-9))},
+    }
 
 
 def _forecast_stats(cfg: SeaConfig, F: np.ndarray, unusable: np.ndarray) -> dict:

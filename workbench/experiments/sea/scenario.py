@@ -38,6 +38,7 @@ class SeaData:
     sigma_acc: float               # m/s^2
     dt: float
     label: str = ""
+    impulse: np.ndarray | None = None  # (T, 2) the impulse noise added to alpha, beta (impulse scenario)
 
     @property
     def steps(self) -> int:
@@ -90,11 +91,13 @@ def simulate(cfg: SeaConfig, rng: np.random.Generator, target: np.ndarray | None
     observer_meas = observer + rng.normal(0.0, cfg.sigma_observer, (T, 2))
     disturbed = np.zeros(T, bool)
     seen = np.ones(T, bool)
+    impulse = None
     if cfg.scenario == "impulse":
         disturbed = (t >= cfg.impulse_start - 1e-9) & (t <= cfg.impulse_end + 1e-9)
         s = np.deg2rad(cfg.impulse_sigma_deg)
-        alpha_meas = alpha_meas + disturbed * rng.normal(0.0, s, T)
-        beta_meas = beta_meas + disturbed * rng.normal(0.0, s, T)
+        impulse = np.stack([disturbed * rng.normal(0.0, s, T), disturbed * rng.normal(0.0, s, T)], axis=1)
+        alpha_meas = alpha_meas + impulse[:, 0]
+        beta_meas = beta_meas + impulse[:, 1]
     elif cfg.scenario == "track-loss":
         seen = ~((t >= cfg.loss_start - 1e-9) & (t < cfg.loss_end - 1e-9))
     alpha_meas = np.where(seen, alpha_meas, np.nan)
@@ -104,4 +107,4 @@ def simulate(cfg: SeaConfig, rng: np.random.Generator, target: np.ndarray | None
                    height=cfg.height, target=target, alpha=alpha, beta=beta,
                    alpha_meas=alpha_meas, beta_meas=beta_meas, seen=seen, disturbed=disturbed,
                    sigma_alpha=sa, sigma_beta=sb, sigma_observer=cfg.sigma_observer,
-                   sigma_acc=cfg.sigma_acc, dt=dt, label=label or cfg.scenario)
+                   sigma_acc=cfg.sigma_acc, dt=dt, label=label or cfg.scenario, impulse=impulse)
