@@ -46,7 +46,7 @@ from workbench.experiments.terrain.config import TerrainConfig
 from workbench.experiments.terrain.dem import Dem
 
 ARRAYS_PER_NODE = 60  # float32 temporaries per node and hypothesis in ``linearise`` (memory budget)
-TARGET_ELEMENTS = 1 << 19  # hypotheses x nodes per chunk: big enough to amortise, small enough for the cache
+TARGET_ELEMENTS = 1 << 17  # hypotheses x nodes per chunk: big enough to amortise, small enough for the cache
 
 
 @dataclass
@@ -182,11 +182,12 @@ def _dem_read(p: Problem, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.
     return s[..., 0], s[..., 1] / np.float32(p.dem.dx), s[..., 2] / np.float32(p.dem.dy)
 
 
-def linearise(p: Problem, centres: np.ndarray, newton: int = 3) -> tuple[np.ndarray, np.ndarray]:
+def linearise(p: Problem, centres: np.ndarray, newton: int = 2) -> tuple[np.ndarray, np.ndarray]:
     """``r0 = Z - F(m)`` ``(c, N)`` and ``H = dF/dX`` at ``m`` ``(c, n, N)`` for centres ``(c, n)``,
     float32, computed component by component (derivatives of the rotation as cross products:
     ``dR/da = [w_a]x R``). In the common-error mode the ground point of every node is found
-    again for each hypothesis (``newton`` Newton steps from the measured orientation's point)."""
+    again for each hypothesis (``newton`` Newton steps from the measured orientation's height;
+    two leave a mean irradiance difference of ~3e-4 against eight, far below R's 0.05)."""
     f32 = np.float32
     c = len(centres)
     err = np.einsum("ern,cn->cer", p.m, centres)                         # (c, 2, 6)
@@ -212,8 +213,9 @@ def linearise(p: Problem, centres: np.ndarray, newton: int = 3) -> tuple[np.ndar
             h, hx, hy = _dem_read(p, x, y)
             t = t - (o[2] + t * d[2] - h) / (d[2] - hx * d[0] - hy * d[1])
         g = [o[i] + t * d[i] for i in range(3)]
-        require(bool(np.all(p.dem.covers(g[0], g[1]))),
-                "the DEM does not cover image I's footprint under a hypothesis")
+        corners = (np.array([g[0].min(), g[0].max(), g[0].min(), g[0].max()]),
+                   np.array([g[1].min(), g[1].min(), g[1].max(), g[1].max()]))
+        require(bool(np.all(p.dem.covers(*corners))), "the DEM does not cover image I's footprint under a hypothesis")
     else:
         t = p.t0.astype(f32)[None]
         g = [o[i] + t * d[i] for i in range(3)]
@@ -245,7 +247,8 @@ def linearise(p: Problem, centres: np.ndarray, newton: int = 3) -> tuple[np.ndar
     h_out = np.zeros((c, p.n, len(p.nodes)), f32)
     for (e, comp), val in jac.items():                                   # H = -J M (error = measured - true)
         for kk in np.flatnonzero(p.m[e, comp]):
-            h_out[:, kk] -= f32(p.m[e, comp, kk]) * val
+            coef = p.m[e, comp, kk]
+            h_out[:, kk] -= val if coef == 1.0 else f32(coef) * val
     return r0, h_out
 
 
