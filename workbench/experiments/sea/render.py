@@ -180,7 +180,9 @@ class Renderer:
         canvas = np.zeros(((y1 - y0) * S, (x1 - x0) * S), np.uint8)
         shift = 4
         for p in polys:
-            c = ((p - [x0, y0] + 0.5) * S - 0.5) * (1 << shift)
+            # fillPoly fills every canvas pixel whose centre is on or inside the outline, which
+            # makes a polygon half a canvas pixel too big on each side: inset it by that much
+            c = _inset((p - [x0, y0] + 0.5) * S - 0.5, 0.5) * (1 << shift)
             cv2.fillPoly(canvas, [np.round(c).astype(np.int32)], 255, cv2.LINE_8, shift)
         cover = cv2.resize(canvas, (x1 - x0, y1 - y0), interpolation=cv2.INTER_AREA).astype(np.float32) / 255.0
         # clip the patch to the frame
@@ -188,6 +190,25 @@ class Renderer:
         c = cover[cy0 - y0: cy1 - y0, cx0 - x0: cx1 - x0]
         patch = img[cy0:cy1, cx0:cx1]
         img[cy0:cy1, cx0:cx1] = patch + (self.look.boat - patch) * c
+
+
+def _inset(poly: np.ndarray, d: float) -> np.ndarray:
+    """A convex polygon with every edge moved inwards by ``d`` (its vertices where the moved edges meet)."""
+    n = len(poly)
+    area2 = np.sum(poly[:, 0] * np.roll(poly[:, 1], -1) - np.roll(poly[:, 0], -1) * poly[:, 1])
+    sign = 1.0 if area2 > 0 else -1.0
+    lines = []
+    for i in range(n):
+        a, b = poly[i], poly[(i + 1) % n]
+        t = (b - a) / np.linalg.norm(b - a)
+        normal = sign * np.array([-t[1], t[0]])          # points inwards
+        lines.append((a + d * normal, t))
+    out = np.empty_like(poly)
+    for i in range(n):
+        (p1, t1), (p2, t2) = lines[i - 1], lines[i]
+        s = np.linalg.solve(np.stack([t1, -t2], axis=1), p2 - p1)
+        out[i] = p1 + s[0] * t1
+    return out
 
 
 def colour(gray: np.ndarray) -> np.ndarray:
