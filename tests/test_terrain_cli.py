@@ -62,6 +62,7 @@ def test_metrics_file_shape_and_reduction(recorded):
             assert key in e
     est = stats["estimators"]
     assert est["navigation"]["reduction"] == 1.0
+    assert est["recurrent-search-refined"]["anees"] > 0 and len(est["recurrent-search-refined"]["nees_band"]) == 2
     # even a 3-level grid (67 m cells) with the refinement beats the navigation system by far
     assert est["recurrent-search-refined"]["position_error"] < 0.5 * est["navigation"]["position_error"]
     assert est["recurrent-search-refined"]["ground_rmse"] < 0.5 * est["navigation"]["ground_rmse"]

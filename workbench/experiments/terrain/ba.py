@@ -115,6 +115,8 @@ def adjust(cfg: TerrainConfig, scene, position: np.ndarray, angles: np.ndarray):
     try:
         marg = gtsam.Marginals(graph, result)
         extras["covariance"] = np.stack([marg.marginalCovariance(X(i)) for i in range(2)])
+        r2 = out_rot[1]  # Pose3's tangent is (rotation, translation) in the body frame: to world
+        extras["position_cov"] = r2 @ extras["covariance"][1][3:, 3:] @ r2.T
     except RuntimeError:
         extras["covariance"] = None
     return Estimate(out_pos, camera.angles_from_rotation(out_rot), 0.0, extras)

@@ -29,6 +29,10 @@ def table(stats: dict) -> str:
             f"| {name} | {e['position_error']:.2f} | {_f(e['reduction'])} | {1000 * e['attitude_error']:.3f} "
             f"| {e['ground_rmse']:.2f} | {p['mean_r']:.3f} | {p['std_r']:.3f} | {p['mean_x']:.3f} | {p['std_x']:.3f} "
             f"| {e['seconds']:.2f} |")
+    for name, e in stats["estimators"].items():
+        if e.get("anees") is not None:
+            lo, hi = e["nees_band"]
+            lines.append(f"- {name}: image II's position ANEES {e['anees']:.2f} (3 dof; 95 % band {lo:.2f}-{hi:.2f})")
     lines += ["", "Errors are image II's (truth - estimate): position as a 3D norm, attitude as the norm of the "
               "three angles, means over runs; ground rmse is the halftone model's horizontal error over every pixel "
               "of image II (RMS over runs); dR = sqrt(dX^2 + dY^2).", "", PAPER_CLAIMS]

@@ -17,6 +17,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from workbench.errors import require
+from workbench.estimation import metrics
 from workbench.estimation.angles import wrap
 from workbench.experiments.terrain import halftone, navigation, search
 from workbench.experiments.terrain.config import TerrainConfig
@@ -71,6 +72,8 @@ def run_estimators(cfg: TerrainConfig, scene: Scene, meas: Estimate, rng: np.ran
         for name, state in ((SEARCH, result.centre), (REFINED, result.refinement)):
             pos, ang = navigation.corrected(meas.position, meas.angles, m @ state)
             out[name] = Estimate(pos, ang, seconds, {"state": state})
+        m2 = m[1, :3]  # image II's position errors from the state
+        out[REFINED].extras["position_cov"] = m2 @ result.covariance[result.winner] @ m2.T
     if "gtsam-ba" in cfg.estimators:
         from workbench.experiments.terrain import ba
 
@@ -106,6 +109,7 @@ class RunSummary:
     attitude: dict[str, np.ndarray]   # (3,) rad
     ground_rmse: dict[str, float]
     seconds: dict[str, float]
+    nees: dict[str, float]            # image II's position NEES (3 dof) where the estimator has a covariance
     winner_in_true_cell: bool | None
     hypotheses: int
     nodes: int
@@ -117,13 +121,18 @@ def summarise(res: RunResult, run: int) -> RunSummary:
     att = {n: wrap(sc.angles[1] - e.angles[1]) for n, e in res.estimates.items()}
     rm = {n: halftone.rmse(g) for n, g in res.ground_errors.items()}
     sec = {n: e.seconds for n, e in res.estimates.items()}
+    nees = {}
+    for n, e in res.estimates.items():
+        cov = e.extras.get("position_cov")
+        if cov is not None and np.all(np.isfinite(cov)) and np.linalg.det(cov) > 0:
+            nees[n] = float(metrics.nees(pos[n], cov))
     hit = None
     if res.search is not None and res.search.kind == "grid":
         s = res.search
         spacing = np.ptp(s.centres, axis=0) / np.maximum(1, np.array([len(np.unique(c)) - 1 for c in s.centres.T]))
         searched = np.ptp(s.centres, axis=0) > 0
         hit = bool(np.all(np.abs(s.centre - res.state)[searched] <= 0.5 * spacing[searched] + 1e-12))
-    return RunSummary(run, pos, att, rm, sec, hit, 0 if res.search is None else len(res.search.centres),
+    return RunSummary(run, pos, att, rm, sec, nees, hit, 0 if res.search is None else len(res.search.centres),
                       0 if res.search is None else res.search.nodes)
 
 
@@ -201,4 +210,9 @@ def statistics(cfg: TerrainConfig, runs: list[RunSummary], label: str = "") -> d
                      "h": float(np.sqrt(np.mean(pos[:, 2] ** 2)))},
             "paper": _paper_fractions(pos, cfg.max_linear),
         }
+        nees = [r.nees[name] for r in runs if name in r.nees]
+        if nees:
+            lo, hi = metrics.chi2_band(3, len(nees))
+            out["estimators"][name]["anees"] = float(np.mean(nees))
+            out["estimators"][name]["nees_band"] = [lo, hi]
     return out

@@ -308,6 +308,7 @@ class SearchResult:
     centres: np.ndarray       # (n_h, n)
     functional: np.ndarray    # (n_h,)
     refined: np.ndarray       # (n_h, n) the filters' final states
+    covariance: np.ndarray    # (n_h, n, n) their final covariances Gamma_N
     winner: int
     nodes: int
     chunk: int
@@ -338,6 +339,7 @@ def run(p: Problem, hyp: Hypotheses, bank: str = "batch", budget_mb: float = 256
     n_h = len(hyp.centres)
     functional = np.empty(n_h)
     refined = np.empty_like(hyp.centres)
+    cov = np.empty((n_h, hyp.centres.shape[1], hyp.centres.shape[1]))
     step = chunk_size(p, budget_mb / max(1, threads))
 
     def one(lo: int) -> int:
@@ -345,10 +347,10 @@ def run(p: Problem, hyp: Hypotheses, bank: str = "batch", budget_mb: float = 256
         r0, h = linearise(p, hyp.centres[sl])
         if bank == "literal":
             for i, j in enumerate(range(sl.start, sl.stop)):
-                functional[j], refined[j], _ = literal(r0[i].astype(float), h[i].astype(float), hyp.centres[j],
-                                                       hyp.prior, p.r)
+                functional[j], refined[j], cov[j] = literal(r0[i].astype(float), h[i].astype(float),
+                                                            hyp.centres[j], hyp.prior, p.r)
         else:
-            functional[sl], refined[sl], _ = batch(r0, h, hyp.centres[sl], hyp.prior, p.r)
+            functional[sl], refined[sl], cov[sl] = batch(r0, h, hyp.centres[sl], hyp.prior, p.r)
         return sl.stop - sl.start
 
     starts = range(0, n_h, step)
@@ -364,4 +366,5 @@ def run(p: Problem, hyp: Hypotheses, bank: str = "batch", budget_mb: float = 256
             done = one(lo)
             if progress:
                 progress(done)
-    return SearchResult(hyp.centres, functional, refined, int(np.argmin(functional)), len(p.nodes), step, hyp.kind)
+    return SearchResult(hyp.centres, functional, refined, cov, int(np.argmin(functional)), len(p.nodes), step,
+                        hyp.kind)
