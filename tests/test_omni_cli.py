@@ -181,3 +181,21 @@ def test_real_robots(tmp_path, robot):
     assert e["gtsam-batch"]["rmse"]["position"] * 3 < odo
     assert e["ekf"]["rmse"]["position"] < odo  # the EKF does not diverge
     assert all(e[n]["coverage"] > 0.99 for n in ALL)
+
+
+def test_from_images(tmp_path):
+    out, m = tmp_path / "img.rrd", tmp_path / "m.json"
+    r = wb("omni", "--from-images", "--duration", "20", "--estimators", "odometry,ekf,isam2", "--out", str(out),
+           "--metrics", str(m))
+    assert r.returncode == 0, r.stderr
+    im = json.loads(m.read_text())["images"]
+    assert im["frames"] == 100 and im["bearing_rmse"] < 0.2 and im["detection_rate"] > 0.9
+    assert im["association_rate"] > 0.85
+    rows = readback.row_counts(out)
+    assert rows["/camera/round"] == 20 and rows["/camera/detections"] == 20  # one frame a second kept
+    assert "Image stage" in r.stdout
+
+
+def test_from_images_needs_the_simulation(tmp_path):
+    r = wb("omni", "--from-images", "--scenario", "mrclam", "--out", str(tmp_path / "x.rrd"))
+    assert r.returncode == 2 and "--from-images" in r.stderr and len(r.stderr.strip().splitlines()) == 1

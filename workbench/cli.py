@@ -201,7 +201,8 @@ def run_omni(cfg, out: Path | None, force: bool, metrics_path: Path | None, spaw
         lo, hi = d.landmarks.min(axis=0), d.landmarks.max(axis=0)
         centre, height = tuple((lo + hi) / 2), 1.6 * float(max(hi - lo))
     with stream.recording(out, "omni", cfg.to_json(), cfg.seed,
-                          record.blueprint(list(first.estimates), centre, height), spawn=spawn,
+                          record.blueprint(list(first.estimates), centre, height, first.images is not None),
+                          spawn=spawn,
                           serve=serve) as rec:
         record.record(rec, first, runs, table)
     stats["recording"] = str(out)
@@ -268,6 +269,9 @@ def omni(
     second_order: bool = typer.Option(None, "--second-order/--first-order",
                                       help="EKF: second-order bearing terms in the update [mrclam on]."),
     huber: float = typer.Option(None, help="GTSAM: Huber threshold on bearing factors (0 = off)."),
+    from_images: bool = typer.Option(False, help="paper: render round images and estimate from their bearings."),
+    image_size: int = typer.Option(None, help="Round image size, px [320]."),
+    image_noise: float = typer.Option(None, help="Round image pixel noise, grey levels [4]."),
 ) -> None:
     """Paper 000: odometer + hemispherical camera; bearing-only EKF-SLAM against GTSAM."""
     from workbench.experiments.omni.config import make_config
@@ -281,7 +285,7 @@ def omni(
         relin_threshold=relin_threshold, settle=settle, data=data, robot=robot, start_time=start_time,
         end_time=end_time, estimators=tuple(e.strip() for e in estimators.split(",") if e.strip()),
         noise_per_second=noise_per_second, lm_every=lm_every, ekf_init=ekf_init, ekf_second_order=second_order,
-        huber=huber,
+        huber=huber, from_images=from_images, image_size=image_size, image_noise=image_noise,
     )
     run_omni(cfg, out, force, metrics, spawn, serve, jobs, export_tum)
 

@@ -52,6 +52,10 @@ class OmniConfig:
     relin_threshold: float = 0.1
     keyframe_every: float = 1.0
     settle: float = 80.0
+    # the image stage (paper only)
+    from_images: bool = False
+    image_size: int = 320
+    image_noise: float = 4.0
     # the real robots
     data: Path | None = None
     robot: int = 1
@@ -103,6 +107,11 @@ class OmniConfig:
         require(self.wall_lines >= 0 and self.pillars >= 0 and self.wall_lines + self.pillars >= 2,
                 "need at least two landmarks (--wall-lines + --pillars)")
         require(self.dt <= 1.0 / self.bearing_rate, "--dt must not exceed the bearing period 1/--bearing-rate")
+        require(not self.from_images or self.scenario == "paper",
+                "--from-images renders the simulation's round images: it needs --scenario paper")
+        require(self.image_size >= 64, f"--image-size must be at least 64 px (got {self.image_size})")
+        require(math.isfinite(self.image_noise) and self.image_noise >= 0.0,
+                f"--image-noise must be a non-negative number (got {self.image_noise})")
         if self.scenario == "paper":
             require(self.duration / self.dt <= 2_000_000, "--duration / --dt is over 2 million steps")
         require(math.isfinite(self.lm_every) and self.lm_every >= 0.0,

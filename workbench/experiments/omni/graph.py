@@ -193,6 +193,16 @@ def _pose(p: gtsam.Pose2) -> np.ndarray:
     return np.array([p.x(), p.y(), p.theta()])
 
 
+JUMP_POSITION = 2.0
+JUMP_HEADING = math.radians(10.0)
+
+
+def _jumped(predicted: gtsam.Pose2, estimate: gtsam.Pose2) -> bool:
+    """Whether an update moved the newest pose implausibly far from its odometry prediction."""
+    d = predicted.between(estimate)
+    return math.hypot(d.x(), d.y()) > JUMP_POSITION or abs(d.theta()) > JUMP_HEADING
+
+
 def _lm_params(iterations: int) -> gtsam.LevenbergMarquardtParams:
     params = gtsam.LevenbergMarquardtParams()
     params.setMaxIterations(iterations)
@@ -290,7 +300,14 @@ class _Incremental:
         graph.push_back(sights)
         values = gtsam.Values(pose_value)
         values.insert(points)
+        predicted = self.current
         threw = self.isam is not None and not self._update(graph, values)
+        if not threw and self.isam is not None and _jumped(predicted, self.current):
+            # iSAM2 takes one undamped Gauss-Newton step per update; a newest pose thrown
+            # metres or tens of degrees from its prediction is such a step running away:
+            # a damped LM pass over the graph so far brings it back
+            threw = True
+            self.runaways += 1
         kept = self.everything.size()
         self.everything.push_back(graph)
         self.start.insert(values)
@@ -322,6 +339,8 @@ class _Incremental:
         for lm in entered:
             self.init_step[lm] = kf.steps[e]
         return self.known[e]
+
+    runaways = 0
 
     def _update(self, graph: gtsam.NonlinearFactorGraph, values: gtsam.Values) -> bool:
         """``isam.update`` and the newest pose's estimate; False if GTSAM throws (an

@@ -13,6 +13,7 @@ Entity layout (timeline ``time``, seconds of the recorded run 0):
 
 from __future__ import annotations
 
+import cv2
 import numpy as np
 import rerun as rr
 import rerun.blueprint as rrb
@@ -32,10 +33,14 @@ def _map_view(name: str, centre: tuple[float, float], height: float) -> rrb.Spat
     )
 
 
-def blueprint(names: list[str], centre: tuple[float, float] = (40.0, 40.0), height: float = 110.0
-              ) -> rrb.Blueprint:
-    """Maps in a grid on the left; errors, sigmas, NEES and the Monte Carlo curves on the right."""
-    maps = rrb.Grid(*[_map_view(n, centre, height) for n in names])
+def blueprint(names: list[str], centre: tuple[float, float] = (40.0, 40.0), height: float = 110.0,
+              with_images: bool = False) -> rrb.Blueprint:
+    """Maps in a grid on the left (and the round camera image, when there is one); errors,
+    sigmas, NEES and the Monte Carlo curves on the right."""
+    views = [_map_view(n, centre, height) for n in names]
+    if with_images:
+        views.insert(0, rrb.Spatial2DView(origin="/camera", name="round image, detected lines"))
+    maps = rrb.Grid(*views)
     one_run = rrb.Vertical(
         rrb.TimeSeriesView(origin="/errors/position", name="position error (m)"),
         rrb.TimeSeriesView(origin="/errors/heading", name="heading error (deg)"),
@@ -151,4 +156,25 @@ def record(rec: rr.RecordingStream, first: RunResult, runs: list[RunSummary], ta
     lo, hi = metrics.chi2_band(3, len(runs))
     draw.scalars(rec, "/monte_carlo/nees/band_lo", TL, mt, np.full_like(mt, lo), "95 % low", grey, 1.0)
     draw.scalars(rec, "/monte_carlo/nees/band_hi", TL, mt, np.full_like(mt, hi), "95 % high", grey, 1.0)
+    if first.images is not None and first.images.frames:
+        _images(rec, first)
     rec.log("/summary", rr.TextDocument(table_md, media_type=rr.MediaType.MARKDOWN), static=True)
+
+
+def _images(rec: rr.RecordingStream, first: RunResult) -> None:
+    """The round images (JPEG, the sample the stage kept) with the detected lines drawn as rays."""
+    frames = first.images.frames
+    t = first.data.t[np.array([s for s, _, _ in frames], int)]
+    size = frames[0][1].shape[0]
+    blobs = [cv2.imencode(".jpg", img, [cv2.IMWRITE_JPEG_QUALITY, 85])[1].tobytes() for _, img, _ in frames]
+    rec.send_columns("/camera/round", indexes=[draw.times(TL, t)],
+                     columns=rr.EncodedImage.columns(blob=blobs, media_type=["image/jpeg"] * len(blobs)))
+    c = (size - 1) / 2
+    strips, counts = [], []
+    for _, _, found in frames:
+        for a in found:
+            strips.append([[c, c], [c + 0.5 * size * np.cos(a), c - 0.5 * size * np.sin(a)]])
+        counts.append(len(found))
+    rec.log("/camera/detections", rr.LineStrips2D.from_fields(colors=[(80, 255, 80)], radii=[0.6]), static=True)
+    rec.send_columns("/camera/detections", indexes=[draw.times(TL, t)],
+                     columns=rr.LineStrips2D.columns(strips=strips).partition(counts))

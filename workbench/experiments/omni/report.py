@@ -37,6 +37,14 @@ def table(stats: dict) -> str:
         if e["failures"]:
             bits.append(f"{e['failures']} rejected update(s)")
         lines.append(f"- {name}: " + "; ".join(bits))
+    im = stats.get("images")
+    if im:
+        lines += ["", f"Image stage ({im['image_size']:.0f} px round images, {im['frames']:.0f} frames a run): "
+                  f"bearing rmse {_f(im['bearing_rmse'], '.3f')} deg, bias {_f(im['bearing_bias'], '.3f')} deg; "
+                  f"{100 * im['detection_rate']:.1f} % of the lines in view detected, "
+                  f"{im['false_detections']:.1f} false detections a run; {100 * im['association_rate']:.1f} % of "
+                  f"detections associated with their own line ({im['tracks']:.1f} tracks for "
+                  f"{im['landmarks']:.1f} lines); {im['seconds']:.1f} s a run"]
     if stats["scenario"] == "paper":
         lines += ["", PAPER_CLAIMS]
     return "\n".join(lines)

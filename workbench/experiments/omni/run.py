@@ -20,7 +20,7 @@ import numpy as np
 from workbench.errors import require
 from workbench.estimation import metrics
 from workbench.estimation.angles import wrap
-from workbench.experiments.omni import ekf, graph, real
+from workbench.experiments.omni import ekf, graph, images, real
 from workbench.experiments.omni.config import OmniConfig
 from workbench.experiments.omni.estimate import SlamEstimate
 from workbench.experiments.omni.scenario import OmniData, simulate
@@ -33,6 +33,7 @@ class RunResult:
     data: OmniData
     grid: np.ndarray
     estimates: dict[str, SlamEstimate]
+    images: images.ImageStage | None = None
 
 
 def make_data(cfg: OmniConfig, run: int) -> OmniData:
@@ -64,9 +65,16 @@ def run_estimators(data: OmniData, cfg: OmniConfig, trace: bool = False,
 
 
 def run_once(cfg: OmniConfig, run: int, trace: bool = False) -> RunResult:
+    """One run; with ``from_images`` the estimators see the image stage's associated bearings."""
     data = make_data(cfg, run)
+    stage = None
+    if cfg.from_images:
+        cam = images.MirrorCamera(size=cfg.image_size, noise=cfg.image_noise)
+        stage = images.run_stage(data, cam, cfg, np.random.default_rng([cfg.seed, run, 1]),
+                                 keep_every=int(round(cfg.bearing_rate)) if trace else 0)
+        data = stage.data
     kf = graph.keyframes(data, cfg)
-    return RunResult(data, kf.steps, run_estimators(data, cfg, trace, kf))
+    return RunResult(data, kf.steps, run_estimators(data, cfg, trace, kf), stage)
 
 
 def on_grid(est: SlamEstimate, grid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -112,6 +120,7 @@ class RunSummary:
     init_delay: dict[str, np.ndarray]
     seconds: dict[str, float]
     failures: dict[str, int]
+    images: dict | None = None
 
 
 def summarise(result: RunResult, run: int) -> RunSummary:
@@ -131,7 +140,8 @@ def summarise(result: RunResult, run: int) -> RunSummary:
         delay[name] = d
     return RunSummary(run, data.t[grid], errs, sig, nees, maps, delay,
                       {n: e.seconds for n, e in result.estimates.items()},
-                      {n: e.failures for n, e in result.estimates.items()})
+                      {n: e.failures for n, e in result.estimates.items()},
+                      result.images.stats if result.images is not None else None)
 
 
 def _worker(args: tuple[OmniConfig, int]) -> RunSummary:
@@ -181,8 +191,9 @@ def statistics(cfg: OmniConfig, runs: list[RunSummary], label: str = "") -> dict
         E = np.stack([r.errors[name] for r in runs])            # (R, G, 3)
         S = np.stack([r.sigmas[name] for r in runs])
         N = np.stack([r.nees[name] for r in runs])
-        M = np.stack([r.map_errors[name] for r in runs])        # (R, N, 2)
-        D = np.stack([r.init_delay[name] for r in runs])
+        # landmarks per run differ with image tracks: pool them
+        M = np.concatenate([r.map_errors[name] for r in runs])   # (sum N, 2)
+        D = np.concatenate([r.init_delay[name] for r in runs])
         pos = np.hypot(E[..., 0], E[..., 1])
         head = np.degrees(np.abs(E[..., 2]))
         after = settled[None, :]
@@ -201,7 +212,7 @@ def statistics(cfg: OmniConfig, runs: list[RunSummary], label: str = "") -> dict
             "anees": _mean(N[:, settled] if after.any() else N),
             "nees_inside_band": float(np.nanmean((nees_mean[settled] >= lo) & (nees_mean[settled] <= hi)))
             if np.isfinite(nees_mean[settled]).any() else None,
-            "landmarks_initialised": float(np.mean(np.sum(np.isfinite(M[..., 0]), axis=1))),
+            "landmarks_initialised": float(np.mean([np.isfinite(r.map_errors[name][:, 0]).sum() for r in runs])),
             "init_seconds": {"mean": _mean(D), "median": float(np.nanmedian(D)) if np.isfinite(D).any() else None,
                              "max": _max(D)},
             "coverage": float(np.mean(np.isfinite(pos))),
@@ -209,6 +220,10 @@ def statistics(cfg: OmniConfig, runs: list[RunSummary], label: str = "") -> dict
             "seconds": float(np.mean([r.seconds[name] for r in runs])),
         }
         out["estimators"][name] = entry
+    if runs[0].images is not None:
+        keys = runs[0].images
+        out["images"] = {k: _mean(np.array([r.images[k] for r in runs], float)) for k in keys}
+        out["images"]["units"] = {"bearing_rmse": "deg", "bearing_bias": "deg", "seconds": "s per run"}
     return out
 
 
