@@ -8,15 +8,14 @@ Errors are ``truth - estimate`` with the heading wrapped; "after settling" means
 
 from __future__ import annotations
 
-import os
 import time
 import warnings
 from collections.abc import Callable
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
 
+from workbench import montecarlo
 from workbench.errors import require
 from workbench.estimation import metrics
 from workbench.estimation.angles import wrap
@@ -152,26 +151,8 @@ def _worker(args: tuple[OmniConfig, int]) -> RunSummary:
 def monte_carlo(cfg: OmniConfig, first: RunResult | None = None, jobs: int | None = None,
                 progress: Callable[[int], None] | None = None) -> list[RunSummary]:
     """Runs ``0 .. runs-1`` (run 0 may be given, already computed with its trace)."""
-    out: list[RunSummary] = []
-    todo = list(range(cfg.runs))
-    if first is not None:
-        out.append(summarise(first, 0))
-        todo = todo[1:]
-        if progress:
-            progress(1)
-    jobs = jobs or min(2, os.cpu_count() or 1)
-    if len(todo) <= 1 or jobs == 1:
-        for r in todo:
-            out.append(_worker((cfg, r)))
-            if progress:
-                progress(1)
-    else:
-        with ProcessPoolExecutor(max_workers=jobs) as pool:
-            for s in pool.map(_worker, [(cfg, r) for r in todo]):
-                out.append(s)
-                if progress:
-                    progress(1)
-    return sorted(out, key=lambda s: s.run)
+    return montecarlo.run_all(_worker, cfg, cfg.runs, summarise(first, 0) if first is not None else None,
+                              jobs, progress)
 
 
 def statistics(cfg: OmniConfig, runs: list[RunSummary], label: str = "") -> dict:

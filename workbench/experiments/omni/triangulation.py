@@ -42,29 +42,26 @@ def rays(mu: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 def triangulate(mu: np.ndarray) -> np.ndarray:
     """Equation (1), corrected: the landmark ``(P, 2)`` for rows of ``mu (P, 8)``."""
-    mu = np.atleast_2d(mu)
-    ai = mu[:, 2] + mu[:, 6]
-    aj = mu[:, 5] + mu[:, 7]
-    ci, si, cj, sj = np.cos(ai), np.sin(ai), np.cos(aj), np.sin(aj)
-    xi, yi, xj, yj = mu[:, 0], mu[:, 1], mu[:, 3], mu[:, 4]
-    den = si * cj - sj * ci
-    with np.errstate(divide="ignore", invalid="ignore"):
-        x = (xi * si * cj - xj * sj * ci + (yj - yi) * ci * cj) / den
-        y = (yj * si * cj - yi * sj * ci + (xi - xj) * si * sj) / den
-    return np.stack([x, y], axis=1)
+    return _equation_1(mu, printed=False)
 
 
 def triangulate_printed(mu: np.ndarray) -> np.ndarray:
     """Equation (1) exactly as printed (indices swapped): wrong, kept for the test."""
+    return _equation_1(mu, printed=True)
+
+
+def _equation_1(mu: np.ndarray, printed: bool) -> np.ndarray:
     mu = np.atleast_2d(mu)
     ai = mu[:, 2] + mu[:, 6]
     aj = mu[:, 5] + mu[:, 7]
     ci, si, cj, sj = np.cos(ai), np.sin(ai), np.cos(aj), np.sin(aj)
     xi, yi, xj, yj = mu[:, 0], mu[:, 1], mu[:, 3], mu[:, 4]
+    # the printed numerators pair s_i with c_i and s_j with c_j; the rays need s_i c_j, s_j c_i
+    a, b = (si * ci, sj * cj) if printed else (si * cj, sj * ci)
     den = si * cj - sj * ci
     with np.errstate(divide="ignore", invalid="ignore"):
-        x = (xi * si * ci - xj * sj * cj + (yj - yi) * ci * cj) / den
-        y = (yj * si * ci - yi * sj * cj + (xi - xj) * si * sj) / den
+        x = (xi * a - xj * b + (yj - yi) * ci * cj) / den
+        y = (yj * a - yi * b + (xi - xj) * si * sj) / den
     return np.stack([x, y], axis=1)
 
 
