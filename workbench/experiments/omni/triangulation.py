@@ -72,7 +72,8 @@ def jacobian(mu: np.ndarray, step: float = 1e-6) -> np.ndarray:
     pts[idx, idx] += step
     pts[idx + 8, idx] -= step
     g = triangulate(pts)
-    return ((g[:8] - g[8:]) / (2 * step)).T
+    with np.errstate(invalid="ignore"):  # parallel rays: inf - inf, reported as NaN
+        return ((g[:8] - g[8:]) / (2 * step)).T
 
 
 @dataclass
@@ -94,9 +95,10 @@ def attempt(mu: np.ndarray, cov: np.ndarray, skew_gate: float, min_parallax: flo
     parallax = float(abs(wrap((mu[5] + mu[7]) - (mu[2] + mu[6]))))
     points, weights = unscented.sigma_points(mu, cov, kappa)
     images, s_i, s_j = rays(points)
-    ut = unscented.moments(images, weights)
-    c, s = np.cos(mu[5]), np.sin(mu[5])
-    skew = ut.skewness(np.array([[c, -s], [s, c]]))
+    with np.errstate(invalid="ignore"):  # a sigma point on parallel rays is inf: rejected below
+        ut = unscented.moments(images, weights)
+        c, s = np.cos(mu[5]), np.sin(mu[5])
+        skew = ut.skewness(np.array([[c, -s], [s, c]]))
     if not (np.all(s_i > 0) and np.all(s_j > 0) and np.isfinite(ut.points).all()):
         return Attempt(False, "behind", ut.mean, ut.cov, skew, parallax, ut.points)
     if parallax < min_parallax:
