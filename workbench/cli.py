@@ -249,7 +249,7 @@ def omni(
     sigma_gamma: float = typer.Option(None, help="paper: steering noise per step, deg [3]."),
     sigma_w: float = typer.Option(None, help="mrclam: yaw-rate noise per step, deg/s."),
     sigma_q: float = typer.Option(None, help="Extra process noise Q per step and axis (m, rad) [0]."),
-    sigma_bearing: float = typer.Option(None, help="Bearing noise, deg [1]."),
+    sigma_bearing: float = typer.Option(None, help="Bearing noise, deg [1; --from-images 0.3]."),
     skew_gate: float = typer.Option(None, help="Initialise a landmark when |skewness| < this [0.3]."),
     min_parallax: float = typer.Option(None, help="... and its rays' parallax is at least this, deg [2]."),
     drop_after: float = typer.Option(None, help="Forget a pending landmark unseen this long, s [1]."),

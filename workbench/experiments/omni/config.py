@@ -127,6 +127,8 @@ class OmniConfig:
         return out
 
 
+IMAGE_SIGMA_BEARING_DEG = 0.3
+
 SCENARIO_DEFAULTS: dict[str, dict] = {
     "paper": {},
     # MRCLAM: a forward camera (bearings span about +-33 deg, lines up to a few metres away),
@@ -147,5 +149,11 @@ def make_config(scenario: str, **given) -> OmniConfig:
     """A config with the scenario's defaults under what the user gave (``None`` = not given)."""
     require(scenario in SCENARIOS, f"unknown scenario {scenario!r}; one of {', '.join(SCENARIOS)}")
     values = dict(SCENARIO_DEFAULTS[scenario])
+    if given.get("from_images"):
+        # the image stage measures bearings to ~0.07 deg (320 px); the estimators (and the
+        # association's gates) are told 0.3 deg. With the simulation's 1 deg the gates are so
+        # wide that neighbouring lines get confused: over 250 s, 76 % of detections went to
+        # their own line in 72 tracks at 1 deg, 90 % in 36 tracks at 0.3 deg
+        values["sigma_bearing_deg"] = IMAGE_SIGMA_BEARING_DEG
     values.update({k: v for k, v in given.items() if v is not None})
     return OmniConfig(scenario=scenario, **values)
