@@ -6,14 +6,13 @@ the statistics of Table 2 (time averages per run, then mean and spread over runs
 
 from __future__ import annotations
 
-import os
 import time
 from collections.abc import Callable
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from workbench import montecarlo
 from workbench.estimation import metrics
 from workbench.estimation.angles import to_arcmin, wrap
 from workbench.experiments.sea import ais, ar_filter, ekf, geometric, images, smoother
@@ -192,26 +191,8 @@ def _worker(args: tuple[SeaConfig, int]) -> RunSummary:
 def monte_carlo(cfg: SeaConfig, first: RunResult | None = None, jobs: int | None = None,
                 progress: Callable[[int], None] | None = None) -> list[RunSummary]:
     """Runs ``0 .. runs-1`` (run 0 may be given, already computed with covariances)."""
-    out: list[RunSummary] = []
-    todo = list(range(cfg.runs))
-    if first is not None:
-        out.append(summarise(first, cfg, 0))
-        todo = todo[1:]
-        if progress:
-            progress(1)
-    jobs = jobs or min(2, os.cpu_count() or 1)
-    if len(todo) <= 2 or jobs == 1:
-        for r in todo:
-            out.append(_worker((cfg, r)))
-            if progress:
-                progress(1)
-    else:
-        with ProcessPoolExecutor(max_workers=jobs) as pool:
-            for s in pool.map(_worker, [(cfg, r) for r in todo], chunksize=2):
-                out.append(s)
-                if progress:
-                    progress(1)
-    return sorted(out, key=lambda s: s.run)
+    return montecarlo.run_all(_worker, cfg, cfg.runs, summarise(first, cfg, 0) if first is not None else None,
+                              jobs, progress, chunksize=2)
 
 
 def statistics(cfg: SeaConfig, runs: list[RunSummary], label: str = "") -> dict:
