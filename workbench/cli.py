@@ -18,6 +18,7 @@ from collections.abc import Callable
 from functools import wraps
 from pathlib import Path
 
+import numpy as np
 import typer
 
 from workbench.errors import WorkbenchError
@@ -73,37 +74,56 @@ def _progress(total: int, label: str):
     return bar, bar.add_task(label, total=total)
 
 
-def run_sea(cfg, out: Path | None, force: bool, metrics_path: Path | None, spawn: bool,
-            serve: bool, jobs: int | None, quiet: bool = False) -> dict:
-    """Validate, check outputs, run, record; returns the metrics dict."""
-    from workbench.experiments.sea import record, report, run
+def _execute(experiment: str, cfg, out: Path | None, force: bool, metrics_path: Path | None, spawn: bool,
+             serve: bool, quiet: bool, compute: Callable, present: Callable,
+             extra_outputs: Callable[[], None] | None = None, after: Callable | None = None) -> dict:
+    """What every experiment command does: validate, check every output before any work,
+    run (``compute(progress) -> (first, runs, stats)``), print the table, record
+    (``present(first) -> (blueprint, draw(rec, first, runs, table))``), write the metrics,
+    then ``after(first, stats)`` for extra exports. Returns the metrics dict."""
     from workbench.recording import stream
 
     cfg.validate()
-    out = stream.check_output(out or RECORDINGS / "sea.rrd", force)
+    out = stream.check_output(out or RECORDINGS / f"{experiment}.rrd", force)
     if metrics_path is not None:
         metrics_path = stream.check_plain_output(metrics_path, force, "metrics file")
+    if extra_outputs is not None:
+        extra_outputs()
     t0 = time.perf_counter()
-    bar, task = _progress(cfg.runs, f"sea {cfg.scenario}")
+    bar, task = _progress(cfg.runs, f"{experiment} {cfg.scenario}")
     with bar:
-        first = run.run_once(cfg, 0, covariances=True, keep_frames=cfg.from_images)
-        runs = run.monte_carlo(cfg, first=first, jobs=jobs,
-                               progress=lambda n: bar.advance(task, n))
-    stats = run.statistics(cfg, runs, first.data.label)
+        first, runs, stats = compute(lambda n: bar.advance(task, n))
     stats["wall_seconds"] = time.perf_counter() - t0
-    table = report.table(stats)
-    with stream.recording(out, "sea", cfg.to_json(), cfg.seed,
-                          record.blueprint(list(first.estimates), images=cfg.from_images),
-                          spawn=spawn, serve=serve) as rec:
-        record.record(rec, first, runs, table)
+    table, (blueprint, draw) = stats.pop("_table"), present(first)
+    with stream.recording(out, experiment, cfg.to_json(), cfg.seed, blueprint, spawn=spawn, serve=serve) as rec:
+        draw(rec, first, runs, table)
     stats["recording"] = str(out)
     if metrics_path is not None:
         stream.write_text_atomic(metrics_path, json.dumps(stats, indent=2))
+    lines = after(first, stats) if after is not None else []
     if not quiet:
         typer.echo(table)
         typer.echo(f"\nrecording: {out}" + (f"\nmetrics:   {metrics_path}" if metrics_path else "")
-                   + f"\n{cfg.runs} run(s) in {stats['wall_seconds']:.1f} s")
+                   + "".join(f"\n{line}" for line in lines) + f"\n{cfg.runs} run(s) in {stats['wall_seconds']:.1f} s")
     return stats
+
+
+def run_sea(cfg, out: Path | None, force: bool, metrics_path: Path | None, spawn: bool,
+            serve: bool, jobs: int | None, quiet: bool = False) -> dict:
+    """The sea experiment through :func:`_execute`; returns the metrics dict."""
+    from workbench.experiments.sea import record, report, run
+
+    def compute(progress):
+        first = run.run_once(cfg, 0, covariances=True, keep_frames=cfg.from_images)
+        runs = run.monte_carlo(cfg, first=first, jobs=jobs, progress=progress)
+        stats = run.statistics(cfg, runs, first.data.label)
+        stats["_table"] = report.table(stats)
+        return first, runs, stats
+
+    def present(first):
+        return record.blueprint(list(first.estimates), images=cfg.from_images), record.record
+
+    return _execute("sea", cfg, out, force, metrics_path, spawn, serve, quiet, compute, present)
 
 
 @app.command()
@@ -175,50 +195,41 @@ def sea(
 
 def run_omni(cfg, out: Path | None, force: bool, metrics_path: Path | None, spawn: bool,
              serve: bool, jobs: int | None, export_tum: Path | None = None, quiet: bool = False) -> dict:
-    """Validate, check outputs, run, record; returns the metrics dict."""
+    """The omni experiment through :func:`_execute` (and the TUM export); returns the metrics dict."""
     from workbench.experiments.omni import record, report, run, tum
     from workbench.recording import stream
 
-    cfg.validate()
-    out = stream.check_output(out or RECORDINGS / "omni.rrd", force)
-    if metrics_path is not None:
-        metrics_path = stream.check_plain_output(metrics_path, force, "metrics file")
-    if export_tum is not None:
+    def check_tum():
         for name in ("truth", *cfg.estimators):
             stream.check_plain_output(Path(export_tum) / f"{name}.tum", force, "TUM trajectory")
-    t0 = time.perf_counter()
-    bar, task = _progress(cfg.runs, f"omni {cfg.scenario}")
-    with bar:
+
+    def compute(progress):
         first = run.run_once(cfg, 0, trace=True)
-        runs = run.monte_carlo(cfg, first=first, jobs=jobs, progress=lambda n: bar.advance(task, n))
-    stats = run.statistics(cfg, runs, first.data.label)
-    stats["wall_seconds"] = time.perf_counter() - t0
-    table = report.table(stats)
-    d = first.data
-    if d.walls is not None:
-        centre, height = tuple(d.walls.mean(axis=0)), 1.4 * float(d.walls.max() - d.walls.min())
-    else:
-        lo, hi = d.landmarks.min(axis=0), d.landmarks.max(axis=0)
-        centre, height = tuple((lo + hi) / 2), 1.6 * float(max(hi - lo))
-    with stream.recording(out, "omni", cfg.to_json(), cfg.seed,
-                          record.blueprint(list(first.estimates), centre, height, first.images is not None),
-                          spawn=spawn,
-                          serve=serve) as rec:
-        record.record(rec, first, runs, table)
-    stats["recording"] = str(out)
-    if metrics_path is not None:
-        stream.write_text_atomic(metrics_path, json.dumps(stats, indent=2))
-    if export_tum is not None:
+        runs = run.monte_carlo(cfg, first=first, jobs=jobs, progress=progress)
+        stats = run.statistics(cfg, runs, first.data.label)
+        stats["_table"] = report.table(stats)
+        return first, runs, stats
+
+    def present(first):
+        d = first.data
+        if d.walls is not None:
+            centre, height = tuple(d.walls.mean(axis=0)), 1.4 * float(d.walls.max() - d.walls.min())
+        else:
+            lo, hi = np.nanmin(d.landmarks, axis=0), np.nanmax(d.landmarks, axis=0)
+            centre, height = tuple((lo + hi) / 2), 1.6 * float(max(hi - lo))
+        return record.blueprint(list(first.estimates), centre, height, first.images is not None), record.record
+
+    def export(first, stats):
+        if export_tum is None:
+            return []
+        d = first.data
         trajectories = {"truth": (d.t, d.truth)}
-        for name, est in first.estimates.items():
-            trajectories[name] = (d.t[est.steps], est.pose)
+        trajectories.update({name: (d.t[est.steps], est.pose) for name, est in first.estimates.items()})
         stats["tum"] = [str(p) for p in tum.export(export_tum, trajectories, force)]
-    if not quiet:
-        typer.echo(table)
-        typer.echo(f"\nrecording: {out}" + (f"\nmetrics:   {metrics_path}" if metrics_path else "")
-                   + (f"\nTUM:       {export_tum}/" if export_tum else "")
-                   + f"\n{cfg.runs} run(s) in {stats['wall_seconds']:.1f} s")
-    return stats
+        return [f"TUM:       {export_tum}/"]
+
+    return _execute("omni", cfg, out, force, metrics_path, spawn, serve, quiet, compute, present,
+                    check_tum if export_tum is not None else None, export)
 
 
 @app.command()
