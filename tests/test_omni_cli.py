@@ -186,13 +186,16 @@ def test_real_robots(tmp_path, robot):
 def test_from_images(tmp_path):
     out, m = tmp_path / "img.rrd", tmp_path / "m.json"
     r = wb("omni", "--from-images", "--duration", "20", "--estimators", "odometry,ekf,isam2", "--out", str(out),
-           "--metrics", str(m))
+           "--metrics", str(m), "--bad-frames", "4")
     assert r.returncode == 0, r.stderr
     im = json.loads(m.read_text())["images"]
     assert im["frames"] == 100 and im["bearing_rmse"] < 0.2 and im["detection_rate"] > 0.9
     assert im["association_rate"] > 0.85
     rows = readback.row_counts(out)
-    assert rows["/camera/round"] == 20 and rows["/camera/detections"] == 20  # one frame a second kept
+    reasons = [r for _, r in im["bad_frames"]]
+    assert len(reasons) == 4 and any("empty" in r for r in reasons) and any("uint8" in r for r in reasons)
+    assert rows["/camera/status"] == 4  # each refused frame is logged where it happened
+    assert rows["/camera/round"] >= 18 and rows["/camera/detections"] == rows["/camera/round"]
     assert "Image stage" in r.stdout
 
 

@@ -283,6 +283,7 @@ def omni(
     from_images: bool = typer.Option(False, help="paper: render round images and estimate from their bearings."),
     image_size: int = typer.Option(None, help="Round image size, px [320]."),
     image_noise: float = typer.Option(None, help="Round image pixel noise, grey levels [4]."),
+    bad_frames: int = typer.Option(None, help="--from-images: replace this many frames by bad ones [0]."),
 ) -> None:
     """Paper 000: odometer + hemispherical camera; bearing-only EKF-SLAM against GTSAM."""
     from workbench.experiments.omni.config import make_config
@@ -296,7 +297,7 @@ def omni(
         relin_threshold=relin_threshold, settle=settle, data=data, robot=robot, start_time=start_time,
         end_time=end_time, estimators=tuple(e.strip() for e in estimators.split(",") if e.strip()),
         noise_per_second=noise_per_second, lm_every=lm_every, ekf_init=ekf_init, ekf_second_order=second_order,
-        huber=huber, from_images=from_images, image_size=image_size, image_noise=image_noise,
+        huber=huber, from_images=from_images, image_size=image_size, image_noise=image_noise, bad_frames=bad_frames,
     )
     run_omni(cfg, out, force, metrics, spawn, serve, jobs, export_tum)
 

@@ -56,6 +56,7 @@ class OmniConfig:
     from_images: bool = False
     image_size: int = 320
     image_noise: float = 4.0
+    bad_frames: int = 0
     # the real robots
     data: Path | None = None
     robot: int = 1
@@ -109,6 +110,7 @@ class OmniConfig:
         require(self.dt <= 1.0 / self.bearing_rate, "--dt must not exceed the bearing period 1/--bearing-rate")
         require(not self.from_images or self.scenario == "paper",
                 "--from-images renders the simulation's round images: it needs --scenario paper")
+        require(self.bad_frames >= 0, f"--bad-frames must be >= 0 (got {self.bad_frames})")
         require(self.image_size >= 64, f"--image-size must be at least 64 px (got {self.image_size})")
         require(math.isfinite(self.image_noise) and self.image_noise >= 0.0,
                 f"--image-noise must be a non-negative number (got {self.image_noise})")

@@ -200,20 +200,45 @@ class ImageStage:
     frames: list
 
 
+BAD_FRAMES = ("empty", "wrong size", "wrong type", "blank")
+
+
+def bad_frame(kind: str, cam: MirrorCamera) -> np.ndarray:
+    """A frame the extractor must refuse or find nothing in (``BAD_FRAMES``)."""
+    if kind == "empty":
+        return np.zeros((0, 0), np.uint8)
+    if kind == "wrong size":
+        return np.full((cam.size // 2, cam.size), 128, np.uint8)
+    if kind == "wrong type":
+        return np.full((cam.size, cam.size), 0.5, np.float32)
+    return np.full((cam.size, cam.size), 128, np.uint8)
+
+
 def run_stage(data: OmniData, cam: MirrorCamera, cfg: OmniConfig, rng: np.random.Generator,
-              keep_every: int = 0) -> ImageStage:
+              keep_every: int = 0, bad_frames: int = 0) -> ImageStage:
     """Render a round image at every bearing epoch from the true pose, extract its bearings,
-    associate them through the filter, and score the stage against the simulation."""
+    associate them through the filter, and score the stage against the simulation.
+
+    ``bad_frames`` frames (spread evenly, kinds in turn from ``BAD_FRAMES``) are replaced by
+    bad ones: they give no bearings (the estimators coast on odometry) and are listed in
+    ``stats["bad_frames"]`` with the reason, for the recording."""
     from workbench.experiments.omni.associate import associate, majority
 
     renderer, extractor = Renderer(cam, rng), Extractor(cam)
-    steps, bearings, true_ids, frames = [], [], [], []
+    steps, bearings, true_ids, frames, refused = [], [], [], [], []
     visible = matched = 0
     errors = []
+    epochs = data.epochs()
+    bad_at = {int(i): BAD_FRAMES[k % len(BAD_FRAMES)]
+              for k, i in enumerate(np.linspace(0, len(epochs) - 1, bad_frames + 2)[1:-1].round())}
     t0 = time.perf_counter()
-    for e, (step, idx) in enumerate(data.epochs()):
+    for e, (step, idx) in enumerate(epochs):
         pose = data.truth[step]
-        img = renderer.render(pose, data.landmarks, data.max_range, data.fov)
+        if e in bad_at:
+            img = bad_frame(bad_at[e], cam)
+            refused.append((int(step), extractor.check(img) or "no lines found"))
+        else:
+            img = renderer.render(pose, data.landmarks, data.max_range, data.fov)
         found, _ = extractor.extract(img)
         lm = data.meas_lm[idx]  # what the simulation says is in view (for scoring only)
         d = data.landmarks[lm] - pose[:2]
@@ -230,7 +255,7 @@ def run_stage(data: OmniData, cam: MirrorCamera, cfg: OmniConfig, rng: np.random
         steps += [step] * len(found)
         bearings += found.tolist()
         true_ids += ids.tolist()
-        if keep_every and e % keep_every == 0:
+        if keep_every and e % keep_every == 0 and e not in bad_at:
             frames.append((step, img, found))
     seconds = time.perf_counter() - t0
     steps_a, bear_a, true_a = np.array(steps, int), np.array(bearings, float), np.array(true_ids, int)
@@ -253,6 +278,6 @@ def run_stage(data: OmniData, cam: MirrorCamera, cfg: OmniConfig, rng: np.random
         "false_detections": int(np.sum(~real)),
         "association_rate": float(np.mean(correct[real])) if real.any() else None,
         "tracks": assoc.n_tracks, "landmarks": int(len(np.unique(owner[owner >= 0]))),
-        "seconds": seconds,
+        "seconds": seconds, "bad_frames": refused,
     }
     return ImageStage(associated, stats, frames)

@@ -175,6 +175,11 @@ def _images(rec: rr.RecordingStream, first: RunResult) -> None:
         for a in found:
             strips.append([[c, c], [c + 0.5 * size * np.cos(a), c - 0.5 * size * np.sin(a)]])
         counts.append(len(found))
+    for step, reason in first.images.stats["bad_frames"]:
+        rec.set_time(TL, duration=float(first.data.t[step]))
+        rec.log("/camera/status", rr.TextLog(f"frame refused: {reason}; the estimators coast",
+                                             level=rr.TextLogLevel.WARN))
+    rec.reset_time()
     rec.log("/camera/detections", rr.LineStrips2D.from_fields(colors=[(80, 255, 80)], radii=[0.6]), static=True)
     rec.send_columns("/camera/detections", indexes=[draw.times(TL, t)],
                      columns=rr.LineStrips2D.columns(strips=strips).partition(counts))

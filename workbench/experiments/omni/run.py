@@ -70,7 +70,7 @@ def run_once(cfg: OmniConfig, run: int, trace: bool = False) -> RunResult:
     if cfg.from_images:
         cam = images.MirrorCamera(size=cfg.image_size, noise=cfg.image_noise)
         stage = images.run_stage(data, cam, cfg, np.random.default_rng([cfg.seed, run, 1]),
-                                 keep_every=int(round(cfg.bearing_rate)) if trace else 0)
+                                 keep_every=int(round(cfg.bearing_rate)) if trace else 0, bad_frames=cfg.bad_frames)
         data = stage.data
     kf = graph.keyframes(data, cfg)
     return RunResult(data, kf.steps, run_estimators(data, cfg, trace, kf), stage)
@@ -203,7 +203,8 @@ def statistics(cfg: OmniConfig, runs: list[RunSummary], label: str = "") -> dict
         out["estimators"][name] = entry
     if runs[0].images is not None:
         keys = runs[0].images
-        out["images"] = {k: _mean(np.array([r.images[k] for r in runs], float)) for k in keys}
+        out["images"] = {k: _mean(np.array([r.images[k] for r in runs], float)) for k in keys if k != "bad_frames"}
+        out["images"]["bad_frames"] = runs[0].images["bad_frames"]  # run 0's: (step, reason)
         out["images"]["units"] = {"bearing_rmse": "deg", "bearing_bias": "deg", "seconds": "s per run"}
     return out
 
