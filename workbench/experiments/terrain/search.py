@@ -102,7 +102,12 @@ def remap(stack: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
 def make_problem(cfg: TerrainConfig, k: Intrinsics, dem: Dem, position: np.ndarray, angles: np.ndarray,
                  images: np.ndarray, interval: float) -> Problem:
     """Nodes of image I every ``node_step`` pixels that fall inside image II, under the measured
-    orientation, with a margin of the largest displacement the errors can cause."""
+    orientation, with a margin of the largest displacement the errors can cause. OpenCV is set
+    to one thread: on chunk-sized remaps its pool costs more than it gives (measured ~15 %), and
+    the search parallelises over chunks instead."""
+    import cv2
+
+    cv2.setNumThreads(1)
     m = navigation.error_map(cfg.mode, interval)
     origin = np.array([np.round(position[0, 0]), np.round(position[0, 1]), 0.0])
     local = Dem(dem.heights, dem.x0 - origin[0], dem.y0 - origin[1], dem.dx, dem.dy)
