@@ -17,11 +17,12 @@ def table(stats: dict) -> str:
     head = ("| estimator | position error m | / navigation | attitude error mrad | ground rmse m | "
             "mean dR / max | sd dR / max | mean dX / max | sd dX / max | s/run |")
     hit = stats.get("winner_in_true_cell")
+    hit_pos = stats.get("winner_in_true_position_cell")
     lines = [f"**terrain / {stats['scene']}** ({stats.get('label', '')}), error mode `{stats['mode']}`, "
              f"{stats['distribution']} errors up to {stats['max_linear']:g} m and {stats['max_angular']:g} rad, "
              f"{stats['runs']} run(s), seed {stats['seed']}; {stats['hypotheses']} hypotheses over "
-             f"{stats['nodes']} nodes" + (f"; winner in the true cell in {100 * hit:.0f} % of runs" if hit is not None
-                                          else ""),
+             f"{stats['nodes']} nodes" + (f"; winner in the true cell in {100 * hit:.0f} % of runs (in the true "
+                                          f"position cell in {100 * hit_pos:.0f} %)" if hit is not None else ""),
              "", head, "|" + "---|" * 10]
     for name, e in stats["estimators"].items():
         p = e["paper"]

@@ -45,6 +45,7 @@ class RunResult:
     estimates: dict[str, Estimate]
     search: search.SearchResult | None
     ground_errors: dict[str, np.ndarray]  # per-pixel ground error maps of image II
+    scene_mode: str = "common"            # the error mode (names the state's components)
 
 
 def make_scene(cfg: TerrainConfig, rng: np.random.Generator) -> Scene:
@@ -97,7 +98,7 @@ def run_once(cfg: TerrainConfig, run: int, trace: bool = False,
     truth = (scene.position[1], scene.angles[1])
     ground = {name: halftone.ground_error(scene.dem, scene.k, truth, (e.position[1], e.angles[1]), step)
               for name, e in estimates.items()}
-    return RunResult(scene, state, meas, estimates, result, ground)
+    return RunResult(scene, state, meas, estimates, result, ground, cfg.mode)
 
 
 @dataclass
@@ -111,6 +112,7 @@ class RunSummary:
     seconds: dict[str, float]
     nees: dict[str, float]            # image II's position NEES (3 dof) where the estimator has a covariance
     winner_in_true_cell: bool | None
+    winner_in_true_position_cell: bool | None
     hypotheses: int
     nodes: int
 
@@ -126,13 +128,17 @@ def summarise(res: RunResult, run: int) -> RunSummary:
         cov = e.extras.get("position_cov")
         if cov is not None and np.all(np.isfinite(cov)) and np.linalg.det(cov) > 0:
             nees[n] = float(metrics.nees(pos[n], cov))
-    hit = None
+    hit = hit_linear = None
     if res.search is not None and res.search.kind == "grid":
         s = res.search
         spacing = np.ptp(s.centres, axis=0) / np.maximum(1, np.array([len(np.unique(c)) - 1 for c in s.centres.T]))
         searched = np.ptp(s.centres, axis=0) > 0
-        hit = bool(np.all(np.abs(s.centre - res.state)[searched] <= 0.5 * spacing[searched] + 1e-12))
-    return RunSummary(run, pos, att, rm, sec, nees, hit, 0 if res.search is None else len(res.search.centres),
+        inside = np.abs(s.centre - res.state) <= 0.5 * spacing + 1e-12
+        hit = bool(np.all(inside[searched]))
+        linear = np.array([n in navigation.LINEAR for n in navigation.STATE[res.scene_mode]]) & searched
+        hit_linear = bool(np.all(inside[linear]))
+    return RunSummary(run, pos, att, rm, sec, nees, hit, hit_linear,
+                      0 if res.search is None else len(res.search.centres),
                       0 if res.search is None else res.search.nodes)
 
 
@@ -188,6 +194,8 @@ def statistics(cfg: TerrainConfig, runs: list[RunSummary], label: str = "") -> d
                  "hypotheses": runs[0].hypotheses, "nodes": runs[0].nodes, "estimators": {}}
     hits = [r.winner_in_true_cell for r in runs if r.winner_in_true_cell is not None]
     out["winner_in_true_cell"] = float(np.mean(hits)) if hits else None
+    hits = [r.winner_in_true_position_cell for r in runs if r.winner_in_true_position_cell is not None]
+    out["winner_in_true_position_cell"] = float(np.mean(hits)) if hits else None
     nav_pos = np.mean([np.linalg.norm(r.position["navigation"]) for r in runs])
     nav_att = np.mean([np.linalg.norm(r.attitude["navigation"]) for r in runs])
     nav_ground = np.sqrt(np.mean([r.ground_rmse["navigation"] ** 2 for r in runs]))
