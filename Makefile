@@ -27,6 +27,9 @@ lint: $(STAMP)
 bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_sea.py
 	$(BIN)/python benchmarks/bench_omni.py
+	$(BIN)/python benchmarks/bench_sea_images.py
+	$(BIN)/python benchmarks/bench_omni_images.py
+	$(BIN)/python benchmarks/bench_terrain.py
 
 clean:
 	rm -rf $(VENV) recordings/*.rrd

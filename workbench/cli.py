@@ -30,6 +30,7 @@ app = typer.Typer(no_args_is_help=True, add_completion=False,
 
 RECORDINGS = PROJECT_ROOT / "recordings"
 OMNI_DEMO_RUNS = 4  # 500 s of SLAM per run with five estimators: about 12 s a run
+TERRAIN_DEMO_RUNS = 4  # about 9 s a run
 
 
 def friendly(fn: Callable) -> Callable:
@@ -448,6 +449,21 @@ def demo(
             typer.echo(f"omni mrclam{robot:<3d} -> {out}  ({stats['wall_seconds']:.1f} s)")
         except WorkbenchError as exc:
             typer.echo(f"omni mrclam robot {robot} skipped: {exc}")
+    from workbench.experiments.terrain.config import TerrainConfig
+
+    terrain_runs = min(runs, TERRAIN_DEMO_RUNS)
+    for mode in ("common", "ii-only"):
+        out = RECORDINGS / f"terrain-{mode}.rrd"
+        stats = run_terrain(TerrainConfig(runs=terrain_runs, mode=mode), out, force,
+                            RECORDINGS / f"terrain-{mode}.json", False, False, None, quiet=True)
+        typer.echo(f"terrain {mode:7s} -> {out}  ({stats['wall_seconds']:.1f} s, {terrain_runs} runs)")
+    try:
+        out = RECORDINGS / "terrain-ngi.rrd"
+        stats = run_terrain(TerrainConfig(scene="ngi", runs=1, mode="ii-only"), out, force,
+                            RECORDINGS / "terrain-ngi.json", False, False, None, quiet=True)
+        typer.echo(f"terrain {'ngi':7s} -> {out}  ({stats['wall_seconds']:.1f} s)")
+    except WorkbenchError as exc:
+        typer.echo(f"terrain ngi skipped: {exc}")
     typer.echo(f"\nrecordings in {RECORDINGS}; open one with: workbench view {written[0][0]}")
 
 
