@@ -9,6 +9,7 @@ worker, so the result does not depend on the number of processes.
 from __future__ import annotations
 
 import os
+import time
 from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor
 from typing import Any
@@ -37,3 +38,14 @@ def run_all(worker: Callable[[tuple[Any, int]], Any], cfg: Any, runs: int, first
                 if progress:
                     progress(1)
     return sorted(out, key=lambda s: s.run)
+
+
+def timed(runners: dict[str, Callable[[], Any]], names: tuple[str, ...] | list[str]) -> dict[str, Any]:
+    """Run the named estimators in order on the same data; each result gets ``.seconds``."""
+    out = {}
+    for name in names:
+        t0 = time.perf_counter()
+        est = runners[name]()
+        est.seconds = time.perf_counter() - t0
+        out[name] = est
+    return out

@@ -8,7 +8,6 @@ Errors are ``truth - estimate`` with the heading wrapped; "after settling" means
 
 from __future__ import annotations
 
-import time
 import warnings
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -54,13 +53,7 @@ def run_estimators(data: OmniData, cfg: OmniConfig, trace: bool = False,
         "isam2": lambda: graph.isam2(data, cfg, kf, map_every=1.0 if trace else float("inf")),
         "gtsam-batch": lambda: graph.batch(data, cfg, kf),
     }
-    out = {}
-    for name in cfg.estimators:
-        t0 = time.perf_counter()
-        est = runners[name]()
-        est.seconds = time.perf_counter() - t0
-        out[name] = est
-    return out
+    return montecarlo.timed(runners, cfg.estimators)
 
 
 def run_once(cfg: OmniConfig, run: int, trace: bool = False) -> RunResult:

@@ -6,7 +6,6 @@ the statistics of Table 2 (time averages per run, then mean and spread over runs
 
 from __future__ import annotations
 
-import time
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 
@@ -63,13 +62,7 @@ def run_estimators(data: SeaData, cfg: SeaConfig, covariances: bool = False) -> 
         "gtsam": lambda: smoother.batch(data, cfg, covariances, factors()),
         "isam2": lambda: smoother.incremental(data, cfg, covariances, factors()),
     }
-    out = {}
-    for name in cfg.estimators:
-        t0 = time.perf_counter()
-        est = runners[name]()
-        est.seconds = time.perf_counter() - t0
-        out[name] = est
-    return out
+    return montecarlo.timed(runners, cfg.estimators)
 
 
 def errors(data: SeaData, est: Estimate) -> np.ndarray:

@@ -8,14 +8,13 @@ unrefined orientation from the navigation system is the estimator ``navigation``
 
 from __future__ import annotations
 
-import os
 import time
 from collections.abc import Callable
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
 
 import numpy as np
 
+from workbench import montecarlo
 from workbench.errors import require
 from workbench.estimation import metrics
 from workbench.estimation.angles import wrap
@@ -150,26 +149,8 @@ def _worker(args: tuple[TerrainConfig, int]) -> RunSummary:
 def monte_carlo(cfg: TerrainConfig, first: RunResult | None = None, jobs: int | None = None,
                 progress: Callable[[int], None] | None = None) -> list[RunSummary]:
     """Runs ``0 .. runs-1`` (run 0 may be given, already computed with its trace)."""
-    out: list[RunSummary] = []
-    todo = list(range(cfg.runs))
-    if first is not None:
-        out.append(summarise(first, 0))
-        todo = todo[1:]
-        if progress:
-            progress(1)
-    jobs = jobs or min(2, os.cpu_count() or 1)
-    if len(todo) <= 1 or jobs == 1:
-        for r in todo:
-            out.append(_worker((cfg, r)))
-            if progress:
-                progress(1)
-    else:
-        with ProcessPoolExecutor(max_workers=jobs) as pool:
-            for s in pool.map(_worker, [(cfg, r) for r in todo]):
-                out.append(s)
-                if progress:
-                    progress(1)
-    return sorted(out, key=lambda s: s.run)
+    return montecarlo.run_all(_worker, cfg, cfg.runs, summarise(first, 0) if first is not None else None,
+                              jobs, progress)
 
 
 def _paper_fractions(pos: np.ndarray, max_linear: float) -> dict[str, float]:
