@@ -2,24 +2,17 @@
 determinism, and bad input (one line, exit code 2, nothing written)."""
 
 import json
-import os
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
+from launcher import DATA, wb
 
 from workbench.experiments.omni import tum
 from workbench.recording import readback
 
 ALL = ("odometry", "ekf-paper", "ekf", "isam2", "gtsam-batch")
-DATA = Path(os.environ.get("WORKBENCH_DATA", Path(__file__).resolve().parents[2] / "shared" / "data"))
 SHORT = ("--duration", "40")
-
-
-def wb(*args):
-    return subprocess.run([sys.executable, "-m", "workbench", *args], capture_output=True, text=True, timeout=900)
 
 
 @pytest.fixture(scope="module")

@@ -2,21 +2,13 @@
 
 import json
 import os
-import subprocess
-import sys
-from pathlib import Path
 
 import pytest
+from launcher import DATA, wb
 
 from workbench.recording import readback
 
 ALL = ("geometric", "rls", "window-rls", "ekf", "gtsam", "isam2")
-DATA = Path(os.environ.get("WORKBENCH_DATA", Path(__file__).resolve().parents[2] / "shared" / "data"))
-
-
-def wb(*args, cwd=None):
-    return subprocess.run([sys.executable, "-m", "workbench", *args], capture_output=True, text=True,
-                          cwd=cwd, timeout=600)
 
 
 @pytest.fixture(scope="module")

@@ -3,11 +3,10 @@ the real NGI pair, and bad input (one line, exit code 2, nothing written)."""
 
 import json
 import shutil
-import subprocess
-import sys
 
 import numpy as np
 import pytest
+from launcher import wb
 
 from workbench.errors import WorkbenchError
 from workbench.experiments.terrain import dem as dem_mod
@@ -19,11 +18,6 @@ from workbench.recording import readback
 SMALL = ("--size", "100x100", "--levels-linear", "3", "--levels-angular", "1")
 NGI = data_root() / "ngi"
 needs_ngi = pytest.mark.skipif(not (NGI / "dem.tif").is_file(), reason=f"no ngi data at {NGI}")
-
-
-def wb(*args, cwd=None):
-    return subprocess.run([sys.executable, "-m", "workbench", *args], capture_output=True, text=True,
-                          cwd=cwd, timeout=600)
 
 
 @pytest.fixture(scope="module")

@@ -18,7 +18,6 @@ from collections.abc import Callable
 from functools import wraps
 from pathlib import Path
 
-import numpy as np
 import typer
 
 from workbench.errors import WorkbenchError
@@ -77,7 +76,8 @@ def _progress(total: int, label: str):
 
 def _execute(experiment: str, cfg, out: Path | None, force: bool, metrics_path: Path | None, spawn: bool,
              serve: bool, quiet: bool, compute: Callable, present: Callable,
-             extra_outputs: Callable[[], None] | None = None, after: Callable | None = None) -> dict:
+             extra_outputs: Callable[[], None] | None = None, after: Callable | None = None,
+             label: str | None = None) -> dict:
     """What every experiment command does: validate, check every output before any work,
     run (``compute(progress) -> (first, runs, stats)``), print the table, record
     (``present(first) -> (blueprint, draw(rec, first, runs, table))``), write the metrics,
@@ -91,7 +91,7 @@ def _execute(experiment: str, cfg, out: Path | None, force: bool, metrics_path: 
     if extra_outputs is not None:
         extra_outputs()
     t0 = time.perf_counter()
-    bar, task = _progress(cfg.runs, f"{experiment} {cfg.scenario}")
+    bar, task = _progress(cfg.runs, label or f"{experiment} {cfg.scenario}")
     with bar:
         first, runs, stats = compute(lambda n: bar.advance(task, n))
     stats["wall_seconds"] = time.perf_counter() - t0
@@ -212,6 +212,8 @@ def run_omni(cfg, out: Path | None, force: bool, metrics_path: Path | None, spaw
         return first, runs, stats
 
     def present(first):
+        import numpy as np
+
         d = first.data
         if d.walls is not None:
             centre, height = tuple(d.walls.mean(axis=0)), 1.4 * float(d.walls.max() - d.walls.min())
@@ -329,28 +331,19 @@ def run_terrain(cfg, out: Path | None, force: bool, metrics_path: Path | None, s
             typer.echo(f"\nwritten: {', '.join(str(p) for p in written)}\n"
                        f"{cfg.runs} run(s) per cell in {time.perf_counter() - t0:.1f} s")
         return {"rows": rows, "written": [str(p) for p in written]}
-    out = stream.check_output(out or RECORDINGS / "terrain.rrd", force)
-    if metrics_path is not None:
-        metrics_path = stream.check_plain_output(metrics_path, force, "metrics file")
-    t0 = time.perf_counter()
-    bar, task = _progress(cfg.runs, f"terrain {cfg.scene} {cfg.mode}")
-    with bar:
+
+    def compute(progress):
         first = run.run_once(cfg, 0, trace=True, threads=min(2, jobs or 2))
-        runs = run.monte_carlo(cfg, first=first, jobs=jobs, progress=lambda n: bar.advance(task, n))
-    stats = run.statistics(cfg, runs, first.scene.label)
-    stats["wall_seconds"] = time.perf_counter() - t0
-    table = report.table(stats)
-    with stream.recording(out, "terrain", cfg.to_json(), cfg.seed, record.blueprint(list(first.estimates)),
-                          spawn=spawn, serve=serve) as rec:
-        record.record(rec, first, table)
-    stats["recording"] = str(out)
-    if metrics_path is not None:
-        stream.write_text_atomic(metrics_path, json.dumps(stats, indent=2))
-    if not quiet:
-        typer.echo(table)
-        typer.echo(f"\nrecording: {out}" + (f"\nmetrics:   {metrics_path}" if metrics_path else "")
-                   + f"\n{cfg.runs} run(s) in {stats['wall_seconds']:.1f} s")
-    return stats
+        runs = run.monte_carlo(cfg, first=first, jobs=jobs, progress=progress)
+        stats = run.statistics(cfg, runs, first.scene.label)
+        stats["_table"] = report.table(stats)
+        return first, runs, stats
+
+    def present(first):
+        return record.blueprint(list(first.estimates)), lambda rec, f, runs, table: record.record(rec, f, table)
+
+    return _execute("terrain", cfg, out, force, metrics_path, spawn, serve, quiet, compute, present,
+                    label=f"terrain {cfg.scene} {cfg.mode}")
 
 
 @app.command()

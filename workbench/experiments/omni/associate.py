@@ -29,9 +29,9 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy.optimize import linear_sum_assignment
-from scipy.special import gammaincinv
 
 from workbench.estimation.angles import wrap
+from workbench.estimation.metrics import chi2_quantile
 from workbench.experiments.omni import ekf
 from workbench.experiments.omni.config import OmniConfig
 from workbench.experiments.omni.scenario import OmniData
@@ -57,7 +57,7 @@ def associate(data: OmniData, cfg: OmniConfig, track_gate: float | None = None) 
     shell = replace(data, landmarks=np.zeros((max(m, 1), 2)), landmark_ids=np.arange(max(m, 1)))
     f = ekf.BearingEkf(shell, cfg, "clone")
     p_gate = cfg.nis_gate if cfg.nis_gate > 0 else 0.99
-    gate = float(2.0 * gammaincinv(0.5, p_gate))
+    gate = chi2_quantile(p_gate, 1)
     track = np.full(m, -1)
     kind = np.full(m, -1)
     n_tracks = 0

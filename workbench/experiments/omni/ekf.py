@@ -44,9 +44,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy import stats
 
 from workbench.estimation.angles import wrap
+from workbench.estimation.metrics import chi2_quantile
 from workbench.experiments.omni import triangulation
 from workbench.experiments.omni.config import OmniConfig
 from workbench.experiments.omni.estimate import SlamEstimate
@@ -70,7 +70,7 @@ class BearingEkf:
         self.first_seen = np.full(n_lm, -1)
         self.init_step = np.full(n_lm, -1)
         self.r = data.sigma_bearing**2
-        self.gate = stats.chi2.ppf(cfg.nis_gate, 1) if cfg.nis_gate > 0 else math.inf
+        self.gate = chi2_quantile(cfg.nis_gate, 1) if cfg.nis_gate > 0 else math.inf
         self.linear = cfg.ekf_init == "linear"
         self.second_order = cfg.ekf_second_order
         self.failures = 0

@@ -126,6 +126,22 @@ class _Landmarks:
     def factor(self, kf: int, lm: int, bearing: float) -> gtsam.BearingFactor2D:
         return gtsam.BearingFactor2D(X(kf), L(lm), gtsam.Rot2.fromAngle(bearing), self.noise)
 
+    def observe(self, e: int, lm: int, bearing: float, pose_of, preset: np.ndarray | None = None
+                ) -> tuple[list[gtsam.BearingFactor2D], np.ndarray | None]:
+        """Take bearing ``bearing`` of ``lm`` at keyframe ``e``. Returns the factors to add now
+        (this one if ``lm`` is in the graph; every held one if it enters now) and, if it enters
+        now, its starting point (``preset`` where given, else :meth:`try_insert`)."""
+        if self.inserted[lm]:
+            return [self.factor(e, lm, bearing)], None
+        self.obs[lm].append((e, bearing))
+        if len(self.obs[lm]) < 2:
+            return [], None
+        point = preset if preset is not None else self.try_insert(lm, pose_of)
+        if point is None:
+            return [], None
+        self.inserted[lm] = True
+        return [self.factor(k, lm, bk) for k, bk in self.obs[lm]], point
+
     def try_insert(self, lm: int, pose_of) -> np.ndarray | None:
         """The landmark's starting point, or None while the first sighting's and the newest
         one's rays do not meet in front of both with ``min_parallax``. The two rays' meeting
@@ -281,21 +297,13 @@ class _Incremental:
             lm, b = int(lm), float(b)
             if self.first_seen[lm] < 0:
                 self.first_seen[lm] = kf.steps[e]
-            if marks.inserted[lm]:
-                sights.add(marks.factor(e, lm, b))
-                continue
-            marks.obs[lm].append((e, b))
-            if len(marks.obs[lm]) < 2:
-                continue
-            point = marks.try_insert(lm, self.known.__getitem__)
-            if point is None:
-                continue
-            points.insert(L(lm), point)
-            for k, bk in marks.obs[lm]:
-                sights.add(marks.factor(k, lm, bk))
-            marks.inserted[lm] = True
-            self.points[lm] = point
-            entered.append(lm)
+            factors, point = marks.observe(e, lm, b, self.known.__getitem__)
+            for factor in factors:
+                sights.add(factor)
+            if point is not None:
+                points.insert(L(lm), point)
+                self.points[lm] = point
+                entered.append(lm)
         graph = gtsam.NonlinearFactorGraph(motion)
         graph.push_back(sights)
         values = gtsam.Values(pose_value)
@@ -457,22 +465,13 @@ def batch(data: OmniData, cfg: OmniConfig, kf: Keyframes | None = None,
             lm, b = int(lm), float(b)
             if first_seen[lm] < 0:
                 first_seen[lm] = kf.steps[e]
-            if marks.inserted[lm]:
-                graph.add(marks.factor(e, lm, b))
+            preset = start_map[lm] if np.isfinite(start_map[lm]).all() else None
+            factors, point = marks.observe(e, lm, b, lambda k: start_poses[k], preset)
+            for factor in factors:
+                graph.add(factor)
+            if point is None:
                 continue
-            marks.obs[lm].append((e, b))
-            if len(marks.obs[lm]) < 2:
-                continue
-            if np.isfinite(start_map[lm]).all():
-                point = start_map[lm]
-            else:
-                point = marks.try_insert(lm, lambda k: start_poses[k])
-                if point is None:
-                    continue
             values.insert(L(lm), point)
-            for k, bk in marks.obs[lm]:
-                graph.add(marks.factor(k, lm, bk))
-            marks.inserted[lm] = True
             init_step[lm] = kf.steps[e]
     result = gtsam.LevenbergMarquardtOptimizer(graph, values, _lm_params(100)).optimize()
     poses = np.array([_pose(result.atPose2(X(e))) for e in range(E)])
