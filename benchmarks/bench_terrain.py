@@ -1,7 +1,8 @@
 """Speed of recurrent-search estimation (targets from issue 4): a 200x200 search over
 5^3 x 3^3 = 3375 hypotheses in under 5 s on the 2-core machine, and peak memory under 4 GB at
 400x500. The search is timed alone (scene, rendering and node selection excluded), on one and
-on two threads, in both error modes; the arithmetic is counted per node and hypothesis
+on two threads, in both error modes, after one warm-up call that loads (or, the first time,
+compiles) the Numba kernel, whose time is printed apart; the arithmetic is counted per node and hypothesis
 (linearisation, H'H as a full n x n product, H'r, r'r) and reported as a rate and as a fraction
 of 2e10 flop/s. Peak memory is the whole process's maximum resident set at 400x500.
 
@@ -27,7 +28,7 @@ from workbench.experiments.terrain import navigation, scene, search  # noqa: E40
 from workbench.experiments.terrain.config import TerrainConfig  # noqa: E402
 
 # flops per node and hypothesis of the linearisation, estimated by counting the operations in
-# ``search.linearise`` (projection ~25, the bilinear read of 3 channels ~24, the chain rule ~60;
+# ``fused._block`` (projection ~25, the bilinear read of 3 channels ~24, the chain rule ~60;
 # the common mode adds the rays, two Newton steps with a DEM read and image I's chain rule)
 LINEARISE_FLOPS = {"ii-only": 110, "common": 250}
 BOUND = 2e10
@@ -41,6 +42,13 @@ def problem(mode: str, size: str) -> tuple[search.Problem, search.Hypotheses]:
     pos, ang = navigation.measured(sc.position, sc.angles, navigation.error_map(mode, sc.interval) @ state)
     return (search.make_problem(cfg, sc.k, sc.dem, pos, ang, sc.images, sc.interval),
             search.hypotheses(cfg, rng))
+
+
+def warm_up(p: search.Problem, hyp: search.Hypotheses) -> float:
+    """Load or compile the kernel (one chunk of two hypotheses); returns seconds."""
+    t0 = time.perf_counter()
+    search.run(p, search.Hypotheses(hyp.centres[:2], hyp.prior, hyp.kind))
+    return time.perf_counter() - t0
 
 
 def timed(p: search.Problem, hyp: search.Hypotheses, threads: int) -> tuple[float, float]:
@@ -64,6 +72,7 @@ def main() -> None:
         p, hyp = problem(mode, "200x200")
         n_h, nodes, n = len(hyp.centres), len(p.nodes), p.n
         flops = n_h * nodes * (LINEARISE_FLOPS[mode] + 2 * n * n + 2 * n + 2)
+        print(f"{mode:8s} kernel load/compile: {warm_up(p, hyp):.2f} s (once per machine; cached on disk)")
         for threads in (1, 2):
             wall, cpu = timed(p, hyp, threads)
             print(f"{mode:8s} 200x200, {n_h} hypotheses x {nodes} nodes (n = {n}), {threads} thread(s): "

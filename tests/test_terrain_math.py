@@ -112,6 +112,39 @@ def test_literal_bank_equals_batch_form(small, mode):
         assert np.allclose(g, g.T) and np.all(np.linalg.eigvalsh(g) > 0)
 
 
+@pytest.mark.parametrize("mode", ["ii-only", "common"])
+def test_compiled_kernel_equals_the_numpy_reference(small, mode):
+    """``fused`` (Numba, node sums never stored) against ``search.linearise`` (NumPy, every node
+    kept): the same r0 and H to round-off, hence the same node sums and functionals."""
+    cfg, sc, state, p = small[mode]
+    hyp = search.hypotheses(cfg, np.random.default_rng(0))
+    pick = hyp.centres[[0, 700, 1687, 3374]]
+    r0, h = search.linearise(p, pick)
+    r0_c, h_c = search.rows(p, pick)
+    assert np.abs(r0_c - r0).max() <= 1e-12 * np.abs(r0).max()
+    assert np.abs(h_c - h).max() <= 1e-12 * np.abs(h).max()
+    hh, hr, rr = search.sums(p, pick)
+    assert np.allclose(hh, np.matmul(h, h.transpose(0, 2, 1)), rtol=1e-10, atol=0)
+    assert np.allclose(hr, np.matmul(h, r0[..., None])[..., 0], rtol=1e-10, atol=1e-10 * np.abs(hr).max())
+    assert np.allclose(rr, (r0 ** 2).sum(axis=1), rtol=1e-12)
+    f_ref = search.batch(r0, h, pick, hyp.prior, p.r)[0]
+    f_sum = search.batch_from_sums(hh, hr, rr, len(p.nodes), pick, hyp.prior, p.r)[0]
+    assert np.abs(f_sum - f_ref).max() <= 1e-9 * np.abs(f_ref).max()
+
+
+def test_literal_and_batch_banks_rank_hypotheses_alike(small):
+    """``run`` with the literal bank (node by node, (2)-(4)) and the compiled batch bank give the
+    same functionals, refinements and winner."""
+    cfg, sc, state, p = small["common"]
+    hyp = search.hypotheses(cfg, np.random.default_rng(0))
+    hyp.centres = hyp.centres[::300]
+    lit = search.run(p, hyp, bank="literal")
+    bat = search.run(p, hyp, bank="batch", threads=2)
+    assert lit.winner == bat.winner
+    assert np.abs(lit.functional - bat.functional).max() <= 1e-8 * np.abs(lit.functional).max()
+    assert np.allclose(lit.refined, bat.refined, rtol=1e-6, atol=1e-9)
+
+
 def test_jacobian_matches_finite_differences(small):
     """H = grad f_II . d(u, v)/dX against central differences of the measurement (ii-only:
     the ground points are exact, so only the projection and the image read differ)."""

@@ -26,12 +26,16 @@ Readings taken:
 
 The batch form: with the linearisation fixed, the sequential filter's functional equals
 ``r'r/R - b'(G^-1 + H'H/R)^-1 b + N ln R + ln|G| - ln|Gamma_N|`` with ``b = H'r/R`` (the
-information form and Woodbury's identity), and the refined state is ``m + Gamma_N b``; it is
-evaluated for chunks of hypotheses at once, the chunk sized to a memory budget.
+information form and Woodbury's identity), and the refined state is ``m + Gamma_N b``. It needs
+only the node sums ``H'H``, ``H'r``, ``r'r``: the compiled kernel (``fused``) accumulates them
+node block by node block for each hypothesis, in parallel over the hypotheses of a chunk, so
+memory does not grow with hypotheses x nodes. :func:`linearise` is the NumPy reference of the
+same measurement model (it keeps every node's terms, for the literal recursion and the tests).
 """
 
 from __future__ import annotations
 
+import functools
 import itertools
 import math
 from collections.abc import Callable
@@ -45,15 +49,15 @@ from workbench.experiments.terrain.camera import Intrinsics
 from workbench.experiments.terrain.config import TerrainConfig
 from workbench.experiments.terrain.dem import Dem
 
-ARRAYS_PER_NODE = 60  # float32 temporaries per node and hypothesis in ``linearise`` (memory budget)
-TARGET_ELEMENTS = 1 << 17  # hypotheses x nodes per chunk: big enough to amortise, small enough for the cache
+ARRAYS_PER_NODE = 60  # float64 temporaries per node and hypothesis in ``linearise`` (the literal bank's budget)
+CHUNK = 125  # hypotheses per chunk of the compiled batch bank (one step of the recording's search timeline)
 
 
 @dataclass
 class Problem:
     """Everything the bank needs: the measured orientation, the images, the nodes, the model.
 
-    Coordinates are relative to ``origin`` (so float32 keeps centimetres on a real map grid)."""
+    Coordinates are relative to ``origin`` (small numbers on a real map grid)."""
 
     mode: str
     k: Intrinsics
@@ -66,48 +70,47 @@ class Problem:
     z: np.ndarray             # (N,) image I at the nodes
     t0: np.ndarray            # (N,) ray parameters of the nodes under the measured orientation
     h0: np.ndarray            # (N,) their ground heights (Newton's start under a hypothesis)
-    image2: np.ndarray        # (H, W, 3) float32: image II, d/du, d/dv
-    dem_stack: np.ndarray     # (rows, cols, 3) float32: h, dh/dcol, dh/drow
+    image2: np.ndarray        # (H, W, 3): image II, d/du, d/dv
+    dem_stack: np.ndarray     # (rows, cols, 3): h, dh/dcol, dh/drow
     r: float                  # measurement noise variance R
 
     @property
     def n(self) -> int:
         return self.m.shape[2]
 
+    @functools.cached_property
+    def node_table(self) -> np.ndarray:
+        """``(N, 5)`` per node: its camera ray's x and y (z = 1), ``Z``, ``h0``, ``t0`` (the
+        compiled kernel's one node input)."""
+        ray = self.k.rays(self.nodes[:, 0], self.nodes[:, 1])
+        return np.ascontiguousarray(np.column_stack([ray[:, 0], ray[:, 1], self.z, self.h0, self.t0]))
+
 
 def gradient_stack(image: np.ndarray) -> np.ndarray:
-    """``(H, W, 3)`` float32: the image and its central-difference derivatives along u and v."""
+    """``(H, W, 3)``: the image and its central-difference derivatives along u and v."""
     gv, gu = np.gradient(np.asarray(image, float))
-    return np.ascontiguousarray(np.stack([image, gu, gv], axis=-1), dtype=np.float32)
+    return np.ascontiguousarray(np.stack([image, gu, gv], axis=-1), dtype=float)
 
 
-def remap(stack: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """Bilinear read of the three channels of ``stack`` at ``(u, v)`` (edges held), through
-    OpenCV's ``remap`` (multi-threaded; 1/32-pixel interpolation weights)."""
-    import cv2
-
-    shape = u.shape
-    n = u.size
-    width = 1024
-    rows = -(-n // width)
-    mu = np.zeros(rows * width, np.float32)
-    mv = np.zeros(rows * width, np.float32)
-    mu[:n] = u.ravel()
-    mv[:n] = v.ravel()
-    out = cv2.remap(stack, mu.reshape(rows, width), mv.reshape(rows, width), cv2.INTER_LINEAR,
-                    borderMode=cv2.BORDER_REPLICATE)
-    return out.reshape(-1, 3)[:n].reshape(*shape, 3)
+def bilinear(stack: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """The channels of ``stack (rows, cols, ch)`` at column ``x``, row ``y`` (any shape), read
+    bilinearly with the edges held; shape ``(*x.shape, ch)``."""
+    rows, cols = stack.shape[:2]
+    xc = np.clip(x, 0.0, cols - 1.0)
+    yc = np.clip(y, 0.0, rows - 1.0)
+    x0 = np.minimum(xc.astype(int), cols - 2)
+    y0 = np.minimum(yc.astype(int), rows - 2)
+    a = (xc - x0)[..., None]
+    b = (yc - y0)[..., None]
+    top = stack[y0, x0] + a * (stack[y0, x0 + 1] - stack[y0, x0])
+    bottom = stack[y0 + 1, x0] + a * (stack[y0 + 1, x0 + 1] - stack[y0 + 1, x0])
+    return top + b * (bottom - top)
 
 
 def make_problem(cfg: TerrainConfig, k: Intrinsics, dem: Dem, position: np.ndarray, angles: np.ndarray,
                  images: np.ndarray, interval: float) -> Problem:
     """Nodes of image I every ``node_step`` pixels that fall inside image II, under the measured
-    orientation, with a margin of the largest displacement the errors can cause. OpenCV is set
-    to one thread: on chunk-sized remaps its pool costs more than it gives (measured ~15 %), and
-    the search parallelises over chunks instead."""
-    import cv2
-
-    cv2.setNumThreads(1)
+    orientation, with a margin of the largest displacement the errors can cause."""
     m = navigation.error_map(cfg.mode, interval)
     origin = np.array([np.round(position[0, 0]), np.round(position[0, 1]), 0.0])
     local = Dem(dem.heights, dem.x0 - origin[0], dem.y0 - origin[1], dem.dx, dem.dy)
@@ -131,7 +134,7 @@ def make_problem(cfg: TerrainConfig, k: Intrinsics, dem: Dem, position: np.ndarr
     nodes = np.stack([u[inside], v[inside]], axis=1)
     z = images[0][nodes[:, 1].astype(int), nodes[:, 0].astype(int)]
     hr, hc = np.gradient(local.heights)
-    dem_stack = np.ascontiguousarray(np.stack([local.heights, hc, hr], axis=-1), dtype=np.float32)
+    dem_stack = np.ascontiguousarray(np.stack([local.heights, hc, hr], axis=-1), dtype=float)
     return Problem(cfg.mode, k, local, origin, position, np.asarray(angles, float), m, nodes, z, t[inside],
                    g[inside, 2], gradient_stack(images[1]), dem_stack, cfg.sigma_r ** 2)
 
@@ -182,26 +185,23 @@ def _cross(a: list, b: list) -> list:
 
 
 def _dem_read(p: Problem, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    s = remap(p.dem_stack, (x - np.float32(p.dem.x0)) / np.float32(p.dem.dx),
-              (y - np.float32(p.dem.y0)) / np.float32(p.dem.dy))
-    return s[..., 0], s[..., 1] / np.float32(p.dem.dx), s[..., 2] / np.float32(p.dem.dy)
+    s = bilinear(p.dem_stack, (x - p.dem.x0) / p.dem.dx, (y - p.dem.y0) / p.dem.dy)
+    return s[..., 0], s[..., 1] / p.dem.dx, s[..., 2] / p.dem.dy
 
 
 def linearise(p: Problem, centres: np.ndarray, newton: int = 2) -> tuple[np.ndarray, np.ndarray]:
     """``r0 = Z - F(m)`` ``(c, N)`` and ``H = dF/dX`` at ``m`` ``(c, n, N)`` for centres ``(c, n)``,
-    float32, computed component by component (derivatives of the rotation as cross products:
+    computed component by component (derivatives of the rotation as cross products:
     ``dR/da = [w_a]x R``). In the common-error mode the ground point of every node is found
     again for each hypothesis (``newton`` Newton steps from the measured orientation's height;
     two leave a mean irradiance difference of ~3e-4 against eight, far below R's 0.05)."""
-    f32 = np.float32
     c = len(centres)
     err = np.einsum("ern,cn->cer", p.m, centres)                         # (c, 2, 6)
     pos = p.position[None] - err[..., :3]
     ang = p.angles[None] - err[..., 3:]
-    rot = camera.rotation(ang).astype(f32)                               # (c, 2, 3, 3)
-    w = camera.axes(ang).astype(f32)                                     # (c, 2, 3 angles, 3)
-    pos32 = pos.astype(f32)
-    ray = p.k.rays(p.nodes[:, 0], p.nodes[:, 1]).astype(f32)             # (N, 3)
+    rot = camera.rotation(ang)                               # (c, 2, 3, 3)
+    w = camera.axes(ang)                                     # (c, 2, 3 angles, 3)
+    ray = p.k.rays(p.nodes[:, 0], p.nodes[:, 1])             # (N, 3)
     moves_i = bool(np.any(p.m[0]))
     ci = c if moves_i else 1
 
@@ -210,9 +210,9 @@ def linearise(p: Problem, centres: np.ndarray, newton: int = 2) -> tuple[np.ndar
 
     d = [col(rot[:ci, 0, i, 0]) * ray[:, 0] + col(rot[:ci, 0, i, 1]) * ray[:, 1] + col(rot[:ci, 0, i, 2])
          for i in range(3)]
-    o = [col(pos32[:ci, 0, i]) for i in range(3)]
+    o = [col(pos[:ci, 0, i]) for i in range(3)]
     if moves_i:
-        t = (o[2] - p.h0.astype(f32)) / -d[2]
+        t = (o[2] - p.h0) / -d[2]
         for _ in range(newton):
             x, y = o[0] + t * d[0], o[1] + t * d[1]
             h, hx, hy = _dem_read(p, x, y)
@@ -222,17 +222,17 @@ def linearise(p: Problem, centres: np.ndarray, newton: int = 2) -> tuple[np.ndar
                    np.array([g[1].min(), g[1].min(), g[1].max(), g[1].max()]))
         require(bool(np.all(p.dem.covers(*corners))), "the DEM does not cover image I's footprint under a hypothesis")
     else:
-        t = p.t0.astype(f32)[None]
+        t = p.t0[None]
         g = [o[i] + t * d[i] for i in range(3)]
-    q = [g[i] - col(pos32[:, 1, i]) for i in range(3)]                   # (c, N)
+    q = [g[i] - col(pos[:, 1, i]) for i in range(3)]                   # (c, N)
     r2 = rot[:, 1]
     pc = [col(r2[:, 0, j]) * q[0] + col(r2[:, 1, j]) * q[1] + col(r2[:, 2, j]) * q[2] for j in range(3)]
-    inv = f32(1.0) / pc[2]
-    u = f32(p.k.cx) + f32(p.k.fx) * pc[0] * inv
-    v = f32(p.k.cy) + f32(p.k.fy) * pc[1] * inv
-    s = remap(p.image2, u, v)
-    r0 = p.z.astype(f32)[None] - s[..., 0]
-    gu, gv = s[..., 1] * f32(p.k.fx) * inv, s[..., 2] * f32(p.k.fy) * inv
+    inv = 1.0 / pc[2]
+    u = p.k.cx + p.k.fx * pc[0] * inv
+    v = p.k.cy + p.k.fy * pc[1] * inv
+    s = bilinear(p.image2, u, v)
+    r0 = p.z[None] - s[..., 0]
+    gu, gv = s[..., 1] * p.k.fx * inv, s[..., 2] * p.k.fy * inv
     gp = [gu, gv, -(gu * pc[0] + gv * pc[1]) * inv]                      # dF/dp (camera II frame)
     dfdg = [col(r2[:, i, 0]) * gp[0] + col(r2[:, i, 1]) * gp[1] + col(r2[:, i, 2]) * gp[2] for i in range(3)]
     jac: dict[tuple[int, int], np.ndarray] = {}
@@ -249,11 +249,11 @@ def linearise(p: Problem, centres: np.ndarray, newton: int = 2) -> tuple[np.ndar
             jac[0, i] = y[i]
             jac[0, 3 + i] = t * (col(w[:, 0, i, 0]) * cr1[0] + col(w[:, 0, i, 1]) * cr1[1]
                                  + col(w[:, 0, i, 2]) * cr1[2])
-    h_out = np.zeros((c, p.n, len(p.nodes)), f32)
+    h_out = np.zeros((c, p.n, len(p.nodes)))
     for (e, comp), val in jac.items():                                   # H = -J M (error = measured - true)
         for kk in np.flatnonzero(p.m[e, comp]):
             coef = p.m[e, comp, kk]
-            h_out[:, kk] -= val if coef == 1.0 else f32(coef) * val
+            h_out[:, kk] -= coef * val
     return r0, h_out
 
 
@@ -294,18 +294,67 @@ def batch(r0: np.ndarray, h: np.ndarray, centres: np.ndarray, prior: np.ndarray,
     """The same functional for a chunk of hypotheses at once (information form + Woodbury);
     ``r0 (c, N)``, ``h (c, n, N)``. Returns functionals ``(c,)``, refined states ``(c, n)``,
     posterior covariances ``(c, n, n)``."""
-    n_nodes = r0.shape[1]
+    return batch_from_sums(np.matmul(h, h.transpose(0, 2, 1)), np.matmul(h, r0[..., None])[..., 0],
+                           np.einsum("cn,cn->c", r0, r0), r0.shape[1], centres, prior, r)
+
+
+def batch_from_sums(hh: np.ndarray, hr: np.ndarray, rr: np.ndarray, n_nodes: int, centres: np.ndarray,
+                    prior: np.ndarray, r: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The batch form from the node sums ``hh = sum H'H (c, n, n)``, ``hr = sum H'r0 (c, n)``,
+    ``rr = sum r0^2 (c,)``: ``Gamma_N = (G^-1 + hh/R)^-1``, ``b = hr/R``, the functional
+    ``rr/R - b' Gamma_N b + N ln R + ln|G| - ln|Gamma_N|`` and the refined state ``m + Gamma_N b``."""
     ginv = np.linalg.inv(prior)
-    info = ginv[None] + np.matmul(h, h.transpose(0, 2, 1)).astype(float) / r
-    b = np.matmul(h, r0[..., None])[..., 0].astype(float) / r
+    info = ginv[None] + hh / r
+    b = hr / r
     gam = np.linalg.inv(info)
     gam = 0.5 * (gam + gam.transpose(0, 2, 1))
     gb = np.einsum("cij,cj->ci", gam, b)
-    quad = np.einsum("cn,cn->c", r0, r0, dtype=float) / r - np.einsum("ci,ci->c", b, gb)
+    quad = rr / r - np.einsum("ci,ci->c", b, gb)
     _, logdet_g = np.linalg.slogdet(prior)
     _, logdet_post = np.linalg.slogdet(gam)
     functional = quad + n_nodes * math.log(r) + logdet_g - logdet_post
     return functional, centres + gb, gam
+
+
+def _kernel_args(p: Problem, centres: np.ndarray) -> tuple:
+    """The compiled kernel's inputs for a chunk: rotations, axes and positions per hypothesis,
+    the node rays, and ``M``'s nonzeros (row of the 12 pose-error partials, state column, value)."""
+    err = np.einsum("ern,cn->cer", p.m, centres)
+    pos = np.ascontiguousarray(p.position[None] - err[..., :3])
+    ang = p.angles[None] - err[..., 3:]
+    e, comp, col = np.nonzero(p.m)
+    geo = np.array([p.dem.x0, p.dem.y0, p.dem.dx, p.dem.dy])
+    kv = np.array([p.k.fx, p.k.fy, p.k.cx, p.k.cy])
+    return (np.ascontiguousarray(camera.rotation(ang)), np.ascontiguousarray(camera.axes(ang)), pos,
+            p.node_table, p.image2, p.dem_stack,
+            geo, kv, int(np.any(p.m[0])), (e * 6 + comp).astype(np.int64), col.astype(np.int64),
+            p.m[e, comp, col].astype(float), p.n)
+
+
+def sums(p: Problem, centres: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``sum H'H``, ``sum H'r0``, ``sum r0^2`` over the nodes for every centre, by the compiled
+    kernel (``fused.sums``): what :func:`linearise` gives, never stored per node."""
+    from workbench.experiments.terrain import fused
+
+    c = len(centres)
+    hh, hr, rr = np.empty((c, p.n, p.n)), np.empty((c, p.n)), np.empty(c)
+    bounds = np.empty((c, 4))
+    args = _kernel_args(p, centres)
+    fused.sums(*args, hh, hr, rr, bounds)
+    if args[8]:
+        corners = (bounds[:, [0, 1, 0, 1]].ravel(), bounds[:, [2, 2, 3, 3]].ravel())
+        require(bool(np.all(p.dem.covers(*corners))), "the DEM does not cover image I's footprint under a hypothesis")
+    return hh, hr, rr
+
+
+def rows(p: Problem, centres: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``r0 (c, N)`` and ``H (c, n, N)`` by the compiled kernel (``fused.rows``), as
+    :func:`linearise` gives them."""
+    from workbench.experiments.terrain import fused
+
+    r0, h = np.empty((len(centres), len(p.nodes))), np.empty((len(centres), p.n, len(p.nodes)))
+    fused.rows(*_kernel_args(p, centres), r0, h)
+    return r0, h
 
 
 @dataclass
@@ -330,46 +379,40 @@ class SearchResult:
         return self.refined[self.winner]
 
 
-def chunk_size(p: Problem, budget_mb: float) -> int:
-    """Hypotheses per chunk: about ``TARGET_ELEMENTS`` node-hypotheses, never over the budget."""
-    per = len(p.nodes) * ARRAYS_PER_NODE * 4
-    return max(1, min(int(budget_mb * 1e6 // per), TARGET_ELEMENTS // len(p.nodes) or 1))
+def chunk_size(p: Problem, budget_mb: float, bank: str = "batch") -> int:
+    """Hypotheses per chunk. The compiled batch bank holds only ``n x n`` sums per hypothesis, so
+    its chunk is ``CHUNK`` (a step of the search's progress); the literal bank stores every
+    node's terms, so its chunk is sized to the memory budget."""
+    if bank == "batch":
+        return CHUNK
+    return max(1, int(budget_mb * 1e6 // (len(p.nodes) * ARRAYS_PER_NODE * 8)))
 
 
 def run(p: Problem, hyp: Hypotheses, bank: str = "batch", budget_mb: float = 256.0,
         progress: Callable[[int], None] | None = None, threads: int = 1) -> SearchResult:
-    """Every hypothesis's functional; ``bank='literal'`` runs (2)-(4) node by node (slow; the
-    reference), ``'batch'`` the vectorised form in memory-bounded chunks, on ``threads``
-    threads (numpy and OpenCV release the GIL; each thread holds one chunk)."""
+    """Every hypothesis's functional; ``bank='literal'`` runs (2)-(4) node by node on
+    :func:`linearise`'s terms (slow; the reference), ``'batch'`` the closed form on the compiled
+    kernel's node sums, chunk by chunk, the hypotheses of a chunk shared among ``threads``
+    threads."""
+    import numba
+
     n_h = len(hyp.centres)
     functional = np.empty(n_h)
     refined = np.empty_like(hyp.centres)
     cov = np.empty((n_h, hyp.centres.shape[1], hyp.centres.shape[1]))
-    step = chunk_size(p, budget_mb / max(1, threads))
-
-    def one(lo: int) -> int:
+    step = chunk_size(p, budget_mb, bank)
+    numba.set_num_threads(max(1, min(threads, numba.config.NUMBA_NUM_THREADS)))
+    for lo in range(0, n_h, step):
         sl = slice(lo, min(lo + step, n_h))
-        r0, h = linearise(p, hyp.centres[sl])
         if bank == "literal":
+            r0, h = linearise(p, hyp.centres[sl])
             for i, j in enumerate(range(sl.start, sl.stop)):
-                functional[j], refined[j], cov[j] = literal(r0[i].astype(float), h[i].astype(float),
-                                                            hyp.centres[j], hyp.prior, p.r)
+                functional[j], refined[j], cov[j] = literal(r0[i], h[i], hyp.centres[j], hyp.prior, p.r)
         else:
-            functional[sl], refined[sl], cov[sl] = batch(r0, h, hyp.centres[sl], hyp.prior, p.r)
-        return sl.stop - sl.start
-
-    starts = range(0, n_h, step)
-    if threads > 1 and len(starts) > 1:
-        from concurrent.futures import ThreadPoolExecutor
-
-        with ThreadPoolExecutor(max_workers=threads) as pool:
-            for done in pool.map(one, starts):
-                if progress:
-                    progress(done)
-    else:
-        for lo in starts:
-            done = one(lo)
-            if progress:
-                progress(done)
+            hh, hr, rr = sums(p, hyp.centres[sl])
+            functional[sl], refined[sl], cov[sl] = batch_from_sums(hh, hr, rr, len(p.nodes), hyp.centres[sl],
+                                                                   hyp.prior, p.r)
+        if progress:
+            progress(sl.stop - sl.start)
     return SearchResult(hyp.centres, functional, refined, cov, int(np.argmin(functional)), len(p.nodes), step,
                         hyp.kind)
