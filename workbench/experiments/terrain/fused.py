@@ -21,6 +21,10 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+# Numba's built-in work queue, not OpenMP: the Monte Carlo runs fork worker processes after the
+# first run has used the kernel's threads, and GNU OpenMP aborts a process forked after use.
+numba.config.THREADING_LAYER = "workqueue"
+
 BLOCK = 256  # nodes per block: the block's terms stay in the first-level cache
 
 

@@ -396,6 +396,8 @@ def run(p: Problem, hyp: Hypotheses, bank: str = "batch", budget_mb: float = 256
     threads."""
     import numba
 
+    from workbench.experiments.terrain import fused  # noqa: F401 (sets the threading layer before threads start)
+
     n_h = len(hyp.centres)
     functional = np.empty(n_h)
     refined = np.empty_like(hyp.centres)
