@@ -304,14 +304,15 @@ def _search(rec: rr.RecordingStream, first: RunResult, origin: np.ndarray) -> No
     best[-1] = w
     change = np.flatnonzero(np.r_[True, best[1:] != best[:-1]])
     labels = [f"lowest so far #{b}" for b in best[change]]
-    labels[-1] = f"winner #{w} ({SEARCH})"
+    labels[-1] = f"winner #{w}"
     steps = [rr.TimeColumn("hypothesis", sequence=ends[change]), rr.TimeColumn("search", sequence=change)]
     rec.log("/world/search/winner", rr.Points3D.from_fields(radii=[2.5 * radius], colors=[color(SEARCH)]),
             static=True)
     rec.send_columns("/world/search/winner", indexes=steps,
                      columns=rr.Points3D.columns(positions=pts[best[change]], labels=labels))
     rec.log("/world/search/winner_cell", rr.Boxes3D.from_fields(half_sizes=[g.cell / 2.0], colors=[color(SEARCH)],
-                                                                radii=[_ui(1.5)]), static=True)
+                                                                radii=[_ui(1.5)], fill_mode="MajorWireframe"),
+            static=True)
     rec.send_columns("/world/search/winner_cell", indexes=steps,
                      columns=rr.Boxes3D.columns(centers=g.measured - pose[best[change], :3]))
     names = ["truth"] + [name for name in first.estimates if name != SEARCH]
