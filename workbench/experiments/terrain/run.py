@@ -24,6 +24,7 @@ from workbench.experiments.terrain.scene import Scene, synthetic_scene
 
 SEARCH = "recurrent-search"
 REFINED = "recurrent-search-refined"
+ITERATED = "recurrent-search-iterated"
 
 
 @dataclass
@@ -69,11 +70,18 @@ def run_estimators(cfg: TerrainConfig, scene: Scene, meas: Estimate, rng: np.ran
         hyp = search.hypotheses(cfg, rng)
         result = search.run(problem, hyp, cfg.bank, cfg.chunk_mb, progress=search_progress, threads=threads)
         seconds = time.perf_counter() - t0
-        for name, state in ((SEARCH, result.centre), (REFINED, result.refinement)):
-            pos, ang = navigation.corrected(meas.position, meas.angles, m @ state)
-            out[name] = Estimate(pos, ang, seconds, {"state": state})
+        t1 = time.perf_counter()
+        state_it, cov_it, n_it = search.iterate(problem, result.centre, hyp.prior, result.refinement)
+        seconds_it = seconds + time.perf_counter() - t1
         m2 = m[1, :3]  # image II's position errors from the state
-        out[REFINED].extras["position_cov"] = m2 @ result.covariance[result.winner] @ m2.T
+        for name, state, cov, sec in ((SEARCH, result.centre, None, seconds),
+                                      (REFINED, result.refinement, result.covariance[result.winner], seconds),
+                                      (ITERATED, state_it, cov_it, seconds_it)):
+            pos, ang = navigation.corrected(meas.position, meas.angles, m @ state)
+            out[name] = Estimate(pos, ang, sec, {"state": state})
+            if cov is not None:
+                out[name].extras["position_cov"] = m2 @ cov @ m2.T
+        out[ITERATED].extras["iterations"] = n_it
     if "gtsam-ba" in cfg.estimators:
         from workbench.experiments.terrain import ba
 
