@@ -71,6 +71,22 @@ def test_error_modes_and_dynamics():
     assert np.allclose(e2[0], 0) and np.allclose(e2[1], [10, 20, -3, 0.002, 0.001, 0.003])
 
 
+@pytest.mark.parametrize("distribution, fraction", [("uniform", 1 / 3 ** 0.5), ("gaussian", 1 / 3),
+                                                    ("maximum", 1.0)])
+def test_error_distributions_have_their_stated_spread(distribution, fraction):
+    """Each component's sample standard deviation over 4000 draws is ``sigma_fraction`` of its
+    maximum (to 5 %); ``maximum`` puts every component at +-max, both signs equally often."""
+    cfg = TerrainConfig(distribution=distribution).validate()
+    rng = np.random.default_rng(11)
+    draws = np.array([navigation.draw_state(cfg, rng) for _ in range(4000)])
+    top = navigation.maxima(cfg)
+    assert navigation.sigma_fraction(cfg) == pytest.approx(fraction)
+    assert np.allclose(draws.std(axis=0) / top, fraction, rtol=0.05)
+    if distribution == "maximum":
+        assert np.allclose(np.abs(draws), top)
+        assert np.all(np.abs((draws > 0).mean(axis=0) - 0.5) < 0.03)
+
+
 def test_grid_hypotheses_cover_the_cube(rng):
     cfg = TerrainConfig(mode="common").validate()
     hyp = search.hypotheses(cfg, rng)

@@ -365,7 +365,7 @@ def terrain(
     max_linear: float = typer.Option(100.0, help="Maximum linear navigation error, m."),
     max_angular: float = typer.Option(0.003, help="Maximum angular navigation error, rad."),
     max_velocity: float = typer.Option(1.0, help="common mode: maximum velocity error, m/s."),
-    distribution: str = typer.Option("uniform", help="Navigation errors: uniform | gaussian (sigma = max / 3)."),
+    distribution: str = typer.Option("uniform", help="Errors: uniform | gaussian (sigma = max/3) | maximum (+-max)."),
     hypotheses: str = typer.Option("grid", help="Hypotheses: grid (full) | sample (N drawn in the cube)."),
     levels_linear: int = typer.Option(5, help="grid: cells per linear axis."),
     levels_angular: int = typer.Option(3, help="grid: cells per angular axis."),

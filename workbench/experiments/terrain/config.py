@@ -23,7 +23,7 @@ from workbench.errors import require
 
 SCENES = ("synthetic", "ngi")
 MODES = ("common", "ii-only")
-DISTRIBUTIONS = ("uniform", "gaussian")
+DISTRIBUTIONS = ("uniform", "gaussian", "maximum")
 HYPOTHESES = ("grid", "sample")
 BANKS = ("batch", "literal")
 ESTIMATORS = ("recurrent-search", "gtsam-ba")

@@ -54,11 +54,20 @@ def maxima(cfg: TerrainConfig) -> np.ndarray:
 
 
 def draw_state(cfg: TerrainConfig, rng: np.random.Generator) -> np.ndarray:
-    """The true error state: uniform up to the maxima, or (``gaussian``) sigma = maximum / 3."""
+    """The true error state: uniform up to the maxima; ``gaussian``, sigma = maximum / 3; or
+    ``maximum``, every component at its maximum with a random sign (the paper's "maximum errors
+    ... taken as constant", read as the errors its experiment applied)."""
     top = maxima(cfg)
     if cfg.distribution == "uniform":
         return rng.uniform(-top, top)
+    if cfg.distribution == "maximum":
+        return top * rng.choice([-1.0, 1.0], size=top.shape)
     return rng.normal(0.0, top / 3.0)
+
+
+def sigma_fraction(cfg: TerrainConfig) -> float:
+    """Each error's standard deviation as a fraction of its maximum under the chosen distribution."""
+    return {"uniform": 1.0 / np.sqrt(3.0), "gaussian": 1.0 / 3.0, "maximum": 1.0}[cfg.distribution]
 
 
 def measured(position: np.ndarray, angles: np.ndarray, pose_errors: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -173,7 +173,7 @@ def hypotheses(cfg: TerrainConfig, rng: np.random.Generator) -> Hypotheses:
         width = 2.0 * top / cfg.samples ** (1.0 / 6.0)
         centres[:, vel_axes] = 0.0
     var = width ** 2 / 12.0
-    var[vel_axes] = top[vel_axes] ** 2 / 3.0 if cfg.distribution == "uniform" else (top[vel_axes] / 3.0) ** 2
+    var[vel_axes] = (top[vel_axes] * navigation.sigma_fraction(cfg)) ** 2
     var = np.maximum(var, 1e-12)
     return Hypotheses(centres, np.diag(var), cfg.hypotheses)
 
