@@ -293,6 +293,7 @@ def test_glyph_origin_and_tables():
     far = SimpleNamespace(position=np.array([[-55094.5, -3727407.0, 5258.3], [-57710.4, -3727433.9, 5256.8]]))
     assert np.array_equal(record.local_origin(far), [-56000.0, -3727000.0, 0.0])
     assert not record.local_origin(SimpleNamespace(position=np.array([[0.0, 0, 1700], [560, 0, 1700]]))).any()
+    assert [record._stride(np.zeros(s)) for s in ((1024, 8), (1025, 8), (1188, 2000))] == [1, 2, 2]
     assert record._nice_ceiling(130.4) == 150.0 and record._nice_ceiling(4.67) == 5.0
     assert record._nice_ceiling(100.0) == 100.0 and record._nice_ceiling(0.0) == 1.0
     assert np.array_equal(record.lowest_so_far(np.array([3.0, 4, 1, 1, 0.5, 2])), [0, 0, 2, 2, 4, 4])

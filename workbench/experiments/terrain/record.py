@@ -46,6 +46,7 @@ COLOUR_NAMES = {"truth": "white", "navigation": "red", SEARCH: "orange", REFINED
 BACKGROUND = (24, 28, 34)           # the 3D views' background: the palette reads on it in either theme
 ERROR_COLORMAP = "Viridis"
 TIMELINES = ("hypothesis", "search")
+MAX_PIXELS_SIDE = 1024              # textures and error maps thinned to this (the 2 Mpx frames would be 8 MB each)
 MAX_RAYS = 30                       # tie points whose rays are drawn (all tie points are drawn)
 NICE = (1.0, 1.2, 1.5, 2.0, 2.5, 3.0, 4.0, 5.0, 6.0, 8.0, 10.0)  # legend tops, times a power of ten
 LABEL = (120, 120, 120)             # legend text: readable on the light and the dark theme
@@ -373,7 +374,8 @@ def _halftones(rec: rr.RecordingStream, first: RunResult, origin: np.ndarray) ->
     sc = first.scene
     k = sc.k
     step = max(1, min(k.width, k.height) // 100)
-    tex, uv = _rgb(sc.images[1]), halftone_texcoords(k, step)
+    thin = _stride(sc.images[1])
+    tex, uv = _rgb(sc.images[1][::thin, ::thin]), halftone_texcoords(k, step)
     for name, e in first.estimates.items():
         mh = halftone.mesh(halftone.ground(sc.dem, k, e.position[1], e.angles[1], step=step))
         rec.log(f"/world/halftone/{name}", rr.Mesh3D(vertex_positions=mh.vertices - origin,
@@ -381,12 +383,20 @@ def _halftones(rec: rr.RecordingStream, first: RunResult, origin: np.ndarray) ->
                                                      albedo_texture=tex), static=True)
 
 
+def _stride(image: np.ndarray) -> int:
+    """Every how-many-th pixel keeps an image at most ``MAX_PIXELS_SIDE`` on its longer side."""
+    return max(1, -(-max(image.shape[:2]) // MAX_PIXELS_SIDE))
+
+
 def _error_map(rec: rr.RecordingStream, name: str, err: np.ndarray) -> None:
     """One ground error map (metres, a colour-mapped depth image: hovering reads the error) with
-    a colour bar below it, its ticks and a title line under the bar."""
-    err = np.asarray(err, np.float32)
+    a colour bar below it, its ticks and a title line under the bar (large maps thinned to
+    ``MAX_PIXELS_SIDE``; the title's statistics are the full map's)."""
+    full = np.asarray(err, np.float32)
+    thin = _stride(full)
+    err = full[::thin, ::thin]
     rows, cols = err.shape
-    top = _nice_ceiling(float(np.nanmax(err)))
+    top = _nice_ceiling(float(np.nanmax(full)))
     path = f"/errors/{name}"
     rec.log(path, rr.DepthImage(err, meter=1.0, colormap=ERROR_COLORMAP, depth_range=(0.0, top)), static=True)
     gap, bar_h = max(1, rows // 30), max(4, rows // 10)
@@ -397,7 +407,7 @@ def _error_map(rec: rr.RecordingStream, name: str, err: np.ndarray) -> None:
     rec.log(f"{path}/legend/ticks", rr.Points2D(np.stack([at * cols, np.full(len(at), bar_h + 0.05 * rows)], 1),
                                                 radii=[0.0], labels=[f"{t * top:.3g} m" for t in at],
                                                 colors=[LABEL]), static=True)
-    rms, worst = float(np.sqrt(np.nanmean(np.square(err)))), float(np.nanmax(err))
+    rms, worst = float(np.sqrt(np.nanmean(np.square(full)))), float(np.nanmax(full))
     rec.log(f"{path}/legend/title", rr.Points2D([[cols / 2.0, bar_h + 0.14 * rows]], radii=[0.0], colors=[LABEL],
                                                 labels=[f"{name}: rmse {rms:.2f} m, max {worst:.2f} m"]), static=True)
 
