@@ -37,12 +37,13 @@ import rerun.blueprint as rrb
 from workbench.estimation.angles import wrap
 from workbench.experiments.terrain import camera, halftone, navigation
 from workbench.experiments.terrain.camera import Intrinsics
-from workbench.experiments.terrain.run import REFINED, SEARCH, Estimate, RunResult
+from workbench.experiments.terrain.run import ITERATED, REFINED, SEARCH, Estimate, RunResult
 from workbench.experiments.terrain.scene import SUN, Scene
 
 PALETTE = {"truth": (240, 240, 240), "navigation": (235, 70, 70), SEARCH: (255, 165, 0),
-           REFINED: (60, 215, 90), "gtsam-ba": (185, 110, 255)}
-COLOUR_NAMES = {"truth": "white", "navigation": "red", SEARCH: "orange", REFINED: "green", "gtsam-ba": "violet"}
+           REFINED: (60, 215, 90), ITERATED: (40, 200, 230), "gtsam-ba": (185, 110, 255)}
+COLOUR_NAMES = {"truth": "white", "navigation": "red", SEARCH: "orange", REFINED: "green", ITERATED: "cyan",
+                "gtsam-ba": "violet"}
 BACKGROUND = (24, 28, 34)           # the 3D views' background: the palette reads on it in either theme
 ERROR_COLORMAP = "Viridis"
 TIMELINES = ("hypothesis", "search")
@@ -59,7 +60,7 @@ def color(name: str) -> tuple[int, int, int]:
 
 def _best(names: list[str]) -> str:
     """The estimator whose halftone model and orthophoto are shown by default."""
-    return next((n for n in (REFINED, "gtsam-ba", SEARCH) if n in names), "navigation")
+    return next((n for n in (ITERATED, REFINED, "gtsam-ba", SEARCH) if n in names), "navigation")
 
 
 def _accumulate() -> rrb.VisibleTimeRanges:
