@@ -251,8 +251,11 @@ def test_error_maps_with_legends(recorded):
         assert bar.shape[1] == err.shape[1] and np.all(np.diff(bar[0]) > 0) and bar.max() <= top
         assert r.values(f"/errors/{name}/legend", "Transform3D:translation")[1] > err.shape[0]  # below the map
         ticks = r.values(f"/errors/{name}/legend/ticks", "Points2D:labels")
-        assert len(ticks) == 5 and all(t.endswith(" m") for t in ticks)
+        assert len(ticks) == 3 and all(t.endswith(" m") for t in ticks)
+        assert np.allclose([float(t[:-2]) for t in ticks], np.array([0.2, 0.5, 0.8]) * top, rtol=1e-2)
         title = r.values(f"/errors/{name}/legend/title", "Points2D:labels")[0]
+        below = r.values(f"/errors/{name}/legend/title", "Points2D:positions", 2)
+        assert len(below) == 2 and below[1, 1] > below[0, 1]      # a spacer under the title keeps it in view
         assert name in title and f"{halftone.rmse(first.ground_errors[name]):.2f} m" in title
     nav = r.values("/errors/navigation", "DepthImage:depth_range")[1]
     refined = r.values("/errors/recurrent-search-refined", "DepthImage:depth_range")[1]
