@@ -24,36 +24,42 @@ the scatter of those triangulated heights about the DEM less their stereo part (
 never below ``cfg.dem_sigma``, the DEM's stated accuracy: the data can show that features sit
 off the modelled surface, not that the DEM is better than stated). Tie points beyond
 ``OUTLIER`` sigmas are dropped (SIFT matches along the epipolar line survive RANSAC and can
-triangulate kilometres off), and the graph is solved again until the sigmas settle. The first
-solve holds the DEM loosely (``COARSE``): a tight DEM from a start 100 m off lands in local
-minima of the relief. Levenberg-Marquardt from the measured orientation, tie points started on
-the DEM; marginals give the refined orientation's covariance.
+triangulate kilometres off), and the graph is solved again until the sigmas settle (two or
+three solves). Levenberg-Marquardt from the measured orientation, tie points started on the DEM;
+marginals give the refined orientation's covariance.
 
-What was wrong, and what the real pair shows (ngi 0182/0184 at 160 x 288, ~23 m pixels; the
-numbers are checked in ``tests/test_terrain_ba.py``):
+Why the BA was worse than the search on the real pair (ngi 0182/0184 at 160 x 288, ~23 m
+pixels, 100 m / 3 mrad uniform errors, seed 0; image II's mean position error over 20 runs,
+common mode; undoing one fix at a time from the final version):
 
-* the common mode put the navigation prior on BOTH exposures: one error counted twice, which
-  pulls the result towards the measured orientation as if the prior were sqrt(2) tighter; and
-  its between factor held the translation in image I's body frame, where the common attitude
-  error (3 mrad over the 2.6 km baseline: 8 m) enters the relative motion;
-* fixed sigmas of 1 px and 5 m misweighted the data against the priors: SIFT's tie points
-  agree to about 0.12 px on both scenes, while on the real pair their heights triangulated under
-  the TRUE orientation scatter about the real DEM by 14 m (robust; 4 m at the native 640 x 1152:
-  23 m pixels at a base-to-height ratio of 0.5 carry about 10 m of stereo height noise, and the
-  DEM is a 24 m grid over relief with slopes of 0.7 rms);
-* with the tight DEM sigma, Levenberg-Marquardt from the measured orientation sometimes stopped
-  in a local minimum of the relief (one of the four runs of the headline command: 106 m in H);
-* SIFT's quarter-pixel bias (above).
+    final 16.5 m | fixed sigmas (1 px, 5 m) 35.0 | SIFT's quarter-pixel bias 25.5 |
+    body-frame between 18.6 | prior on both exposures 17.2 | all undone (the old BA) 38.0
 
-What remains is genuine, not a bug: the truth is consistent with the images and the DEM (tie
+(ii-only: final 7.7, old 10.7; synthetic 200 x 200, 8 runs: common 6.7 -> 4.0, ii-only
+3.5 -> 1.8.) The causes:
+
+* fixed sigmas of 1 px and 5 m misweighted the data against the priors, so the result shrank
+  towards the measured orientation: SIFT's tie points agree to about 0.12 px on both scenes,
+  while on the real pair their triangulated heights scatter about the real DEM by 6-8 m beyond
+  their stereo noise (the DEM is a 24 m grid over relief with slopes of 0.7 rms);
+* OpenCV's SIFT without precise upscaling puts every keypoint a quarter pixel right of and below
+  where it is: a bias common to both images, 6 m on the ground at 23 m pixels;
+* the common mode held the between's translation in image I's body frame, where the common
+  attitude error (3 mrad over the 2.6 km baseline: 8 m) enters the relative motion, and left its
+  height free although the error model has no vertical velocity error;
+* the common mode put the navigation prior on BOTH exposures: one error counted twice.
+
+What remains is genuine, not a bug. The truth is consistent with the images and the DEM (tie
 points reproject under the true orientation to about 0.1 px, and their cloud fits the DEM with a
-shift of about 2 m at 640 x 1152), but in the common mode the relative orientation is known, so
+shift of about 2 m at 640 x 1152). But in the common mode the relative orientation is known, so
 all the absolute information is the fit of ONE stereo model to the DEM, and at 160 x 288 the
-real pair gives only about 80 tie points in a 1 x 6.6 km overlap strip (the frames overlap by
-30 %). The data alone (no navigation prior) then place image II only to tens of metres (1
-sigma); the same tie points serve every run, so their single noise realisation shows as a
-common offset of every run's error rather than averaging out over runs. At 640 x 1152 (590 tie
-points) the data alone place it to about 5 m.
+real frames overlap by only 30 %: about 65 tie points in a 1 x 6.6 km strip. The data alone (no
+navigation prior) place image II to (8, 13, 13) m (1 sigma, X, Y, H), and the same tie points
+serve every run, so their one noise realisation shows as a common offset of the runs' errors
+(about (-8, 2, -9) m) rather than averaging out. Larger frames carry more: over 20 runs the
+common mode gives 14.8 m at 320 x 576 and 9.9 m at 640 x 1152 (ii-only 6.0 and 7.1 m), but
+there the covariance turns optimistic (ANEES up to 16): a few metres of model error (the true
+orientation's own, the DEM's, the camera's) begin to show.
 """
 
 from __future__ import annotations
@@ -75,8 +81,6 @@ if TYPE_CHECKING:
 
 PIXEL_SIGMA = 0.3
 """The first solve's sigma of a tie point's pixel coordinates (px); re-estimated after it."""
-COARSE = 6.0
-"""The first solve's height sigma is this many times ``cfg.dem_sigma`` (a loose DEM first)."""
 HUBER = 1.345
 """Huber threshold of both observation groups, in sigmas."""
 OUTLIER = 5.0
@@ -353,7 +357,7 @@ def adjust(cfg: TerrainConfig, scene: Scene, position: np.ndarray, angles: np.nd
     params.setMaxIterations(100)
     params.setRelativeErrorTol(RELATIVE_TOLERANCE)
     keep = np.ones(len(uv1), bool)
-    sigmas = np.array([PIXEL_SIGMA, COARSE * cfg.dem_sigma])
+    sigmas = np.array([PIXEL_SIGMA, cfg.dem_sigma])
     graph = _graph(cfg, pair, uv1, uv2, keep, *sigmas)
     error_before = graph.error(values)
     iterations, history = 0, []
