@@ -327,7 +327,9 @@ def test_real_pair_in_a_local_frame(tmp_path):
     assert np.abs(dem[:, 2] - h).max() < 0.5
     tp = r.values("/world/ba/tie_points", "Points3D:positions", 3) + origin
     h, _, _ = first.scene.dem.sample(tp[:, 0], tp[:, 1])
-    assert np.median(np.abs(tp[:, 2] - h)) < 20.0
+    # on the DEM to tens of metres (a handful of tie points on 46 m pixels, heights estimated by BA with its
+    # fitted height sigma); a frame mix-up would put them 1e5 m or more away
+    assert np.median(np.abs(tp[:, 2] - h)) < 100.0
     _, pts = r.rows("/world/search/hypotheses", "Points3D:positions", 3)
     assert np.abs(np.concatenate(pts) + origin - first.measured.position[1]).max() < 2 * cfg.max_linear
     assert f"X = {origin[0]:.0f} m" in r.values("/summary", "TextDocument:text")[0]
