@@ -73,7 +73,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from workbench.errors import require
-from workbench.experiments.terrain import camera
+from workbench.experiments.terrain import camera, navigation
 from workbench.experiments.terrain.config import TerrainConfig
 from workbench.experiments.terrain.dem import Dem
 from workbench.experiments.terrain.scene import Scene
@@ -230,7 +230,7 @@ def pose_factors(cfg: TerrainConfig, pair: _Pair) -> list:
     from gtsam.symbol_shorthand import X
 
     poses = [gtsam.Pose3(gtsam.Rot3(pair.rotation[i]), gtsam.Point3(*pair.position[i])) for i in range(2)]
-    div = np.sqrt(3.0) if cfg.distribution == "uniform" else 3.0
+    div = 1.0 / navigation.sigma_fraction(cfg)       # sigma = maximum x the distribution's fraction
     s_lin, s_ang = cfg.max_linear / div, cfg.max_angular / div
     prior = gtsam.noiseModel.Diagonal.Sigmas(np.r_[np.full(3, s_ang), np.full(3, s_lin)])
     if cfg.mode == "ii-only":
