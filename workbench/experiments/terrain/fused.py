@@ -53,10 +53,10 @@ def _block(i, lo, hi, rot, w, pos, nd, image2, dem_stack, geo, kv, moves_i, m_ro
     """Nodes ``lo:hi`` under hypothesis ``i``: ``out[0, k - lo] = r0``, the pose-error partials
     ``out[1:13, k - lo]`` (image I's six, unused when it does not move, then image II's) and the
     rows ``h[:, k - lo] = -(J M)``; ``out[13:15]`` the ground points' x and y, and ``bounds``
-    grows to their extent. ``nd (N, 5)``
-    holds each node's ray (x, y), ``Z``, start height and ray parameter. Written as one straight
-    loop over the nodes (two Newton steps unrolled) reading three arrays and writing one, so the
-    compiler vectorises it (more arrays exceed its budget of run-time aliasing checks)."""
+    grows to their extent. ``nd (N, 5)`` holds each node's ray (x, y), ``Z``, start height and ray
+    parameter. Written as one straight loop over the nodes (the compiler unrolls the two Newton
+    steps) reading three arrays and writing one, so the compiler vectorises it (more arrays exceed
+    its budget of run-time aliasing checks)."""
     fx, fy, cx, cy = kv[0], kv[1], kv[2], kv[3]
     ci = i * moves_i
     r00, r01, r02 = rot[ci, 0, 0, 0], rot[ci, 0, 0, 1], rot[ci, 0, 0, 2]
@@ -84,12 +84,10 @@ def _block(i, lo, hi, rot, w, pos, nd, image2, dem_stack, geo, kv, moves_i, m_ro
         hy = 0.0
         if moves_i:
             t = (o2 - nd[k, 3]) / -d2
-            e0, e1, e2 = _read(dem_stack, (o0 + t * d0 - gx0) / gdx, (o1 + t * d1 - gy0) / gdy)
-            hx, hy = e1 / gdx, e2 / gdy
-            t = t - (o2 + t * d2 - e0) / (d2 - hx * d0 - hy * d1)
-            e0, e1, e2 = _read(dem_stack, (o0 + t * d0 - gx0) / gdx, (o1 + t * d1 - gy0) / gdy)
-            hx, hy = e1 / gdx, e2 / gdy
-            t = t - (o2 + t * d2 - e0) / (d2 - hx * d0 - hy * d1)
+            for _ in range(2):                                        # two Newton steps on the DEM
+                e0, e1, e2 = _read(dem_stack, (o0 + t * d0 - gx0) / gdx, (o1 + t * d1 - gy0) / gdy)
+                hx, hy = e1 / gdx, e2 / gdy
+                t = t - (o2 + t * d2 - e0) / (d2 - hx * d0 - hy * d1)
         else:
             t = nd[k, 4]
         g0 = o0 + t * d0
