@@ -127,18 +127,27 @@ def run_sea(cfg, out: Path | None, force: bool, metrics_path: Path | None, spawn
     return _execute("sea", cfg, out, force, metrics_path, spawn, serve, quiet, compute, present)
 
 
+# the options every experiment command shares (typer reads these, never changes them)
+SEED = typer.Option(0, help="Seed of every random draw.")
+FORCE = typer.Option(False, help="Overwrite existing outputs.")
+METRICS = typer.Option(None, help="Write the metrics JSON here.")
+SPAWN = typer.Option(False, help="Also stream to a spawned native viewer.")
+SERVE = typer.Option(False, help="Also serve the stream over gRPC.")
+JOBS = typer.Option(None, help="Processes for Monte Carlo runs (default: up to 2).")
+
+
 @app.command()
 @friendly
 def sea(
     scenario: str = typer.Option("paper", help="paper | impulse | track-loss | ais"),
-    seed: int = typer.Option(0, help="Seed of every random draw."),
+    seed: int = SEED,
     runs: int = typer.Option(1, help="Monte Carlo runs (run 0 is recorded in full)."),
     out: Path = typer.Option(None, help="Recording path [default: recordings/sea.rrd]."),
-    force: bool = typer.Option(False, help="Overwrite existing outputs."),
-    metrics: Path = typer.Option(None, help="Write the metrics JSON here."),
-    spawn: bool = typer.Option(False, help="Also stream to a spawned native viewer."),
-    serve: bool = typer.Option(False, help="Also serve the stream over gRPC."),
-    jobs: int = typer.Option(None, help="Processes for Monte Carlo runs [default: up to 2]."),
+    force: bool = FORCE,
+    metrics: Path = METRICS,
+    spawn: bool = SPAWN,
+    serve: bool = SERVE,
+    jobs: int = JOBS,
     estimators: str = typer.Option("geometric,rls,window-rls,ekf,gtsam,isam2",
                                    help="Comma-separated estimators to run."),
     lam: float = typer.Option(1.0, help="Forgetting factor lambda of algorithm 2, in (0, 1]."),
@@ -239,14 +248,14 @@ def run_omni(cfg, out: Path | None, force: bool, metrics_path: Path | None, spaw
 @friendly
 def omni(
     scenario: str = typer.Option("paper", help="paper | mrclam"),
-    seed: int = typer.Option(0, help="Seed of every random draw."),
+    seed: int = SEED,
     runs: int = typer.Option(1, help="Monte Carlo runs (run 0 is recorded in full; mrclam: 1)."),
     out: Path = typer.Option(None, help="Recording path [default: recordings/omni.rrd]."),
-    force: bool = typer.Option(False, help="Overwrite existing outputs."),
-    metrics: Path = typer.Option(None, help="Write the metrics JSON here."),
-    spawn: bool = typer.Option(False, help="Also stream to a spawned native viewer."),
-    serve: bool = typer.Option(False, help="Also serve the stream over gRPC."),
-    jobs: int = typer.Option(None, help="Processes for Monte Carlo runs [default: up to 2]."),
+    force: bool = FORCE,
+    metrics: Path = METRICS,
+    spawn: bool = SPAWN,
+    serve: bool = SERVE,
+    jobs: int = JOBS,
     estimators: str = typer.Option("odometry,ekf-paper,ekf,isam2,gtsam-batch",
                                    help="Comma-separated estimators to run."),
     export_tum: Path = typer.Option(None, help="Write run 0's trajectories in TUM format into this folder."),
@@ -350,14 +359,14 @@ def run_terrain(cfg, out: Path | None, force: bool, metrics_path: Path | None, s
 @friendly
 def terrain(
     scene: str = typer.Option("synthetic", help="synthetic | ngi (the real frames and DEM)."),
-    seed: int = typer.Option(0, help="Seed of every random draw."),
+    seed: int = SEED,
     runs: int = typer.Option(1, help="Monte Carlo runs (run 0 is recorded in full)."),
     out: Path = typer.Option(None, help="Recording path [default: recordings/terrain.rrd]."),
-    force: bool = typer.Option(False, help="Overwrite existing outputs."),
-    metrics: Path = typer.Option(None, help="Write the metrics JSON here."),
-    spawn: bool = typer.Option(False, help="Also stream to a spawned native viewer."),
-    serve: bool = typer.Option(False, help="Also serve the stream over gRPC."),
-    jobs: int = typer.Option(None, help="Processes for Monte Carlo runs [default: up to 2]."),
+    force: bool = FORCE,
+    metrics: Path = METRICS,
+    spawn: bool = SPAWN,
+    serve: bool = SERVE,
+    jobs: int = JOBS,
     estimators: str = typer.Option("recurrent-search,gtsam-ba", help="Comma-separated estimators to run."),
     mode: str = typer.Option("common", help="Error mode: common (one process, dynamics A) | ii-only."),
     size: str = typer.Option(None, help="Image size WIDTHxHEIGHT (the paper: 100x100, 200x200, 400x500) "
