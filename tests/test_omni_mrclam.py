@@ -261,7 +261,7 @@ needs_data = pytest.mark.skipif(not (MRCLAM / "Robot1_Odometry.dat").is_file(),
                                 reason=f"MRCLAM dataset 6 not found at {MRCLAM} (set WORKBENCH_DATA)")
 
 
-@pytest.fixture(scope="module", params=[1, 2], ids=["robot1", "robot2"])
+@pytest.fixture(scope="module", params=[1, 2, 3, 4, 5], ids=[f"robot{r}" for r in range(1, 6)])
 def real(request) -> tuple[mrclam.MrclamLog, float]:
     if not (MRCLAM / "Robot1_Odometry.dat").is_file():
         pytest.skip(f"MRCLAM dataset 6 not found at {MRCLAM} (set WORKBENCH_DATA)")
@@ -272,7 +272,7 @@ def real(request) -> tuple[mrclam.MrclamLog, float]:
 
 @needs_data
 def test_real_robots_listed():
-    assert mrclam.robots_in(MRCLAM) == [1, 2]
+    assert mrclam.robots_in(MRCLAM) == [1, 2, 3, 4, 5]
 
 
 @needs_data
@@ -289,9 +289,12 @@ def test_real_sizes_and_drops(real):
     total = log.meas_t.size + sum(log.dropped[k] for k in log.MEASUREMENT_DROPS)
     fraction = 1.0 - log.meas_t.size / total
     assert 0.15 < fraction < 0.25, fraction  # the README: about 20 % are of other robots
-    assert log.dropped["unknown"] == (1 if log.robot == 1 else 0)
+    # the README names robot 1's one unknown barcode; the later robots have a few (2 and 3 in 3 and 4)
+    assert log.dropped["unknown"] <= 3 and (log.robot != 1 or log.dropped["unknown"] == 1)
     assert np.all(np.abs(log.meas_bearing) < np.deg2rad(35.0))
-    assert np.all(np.isfinite(log.truth_at(log.odom_t)))  # the default stretch is covered
+    # the default stretch is covered but for Vicon's gaps over 0.3 s (robot 4 has 2.0 s and 0.55 s)
+    covered = np.isfinite(log.truth_at(log.odom_t)[:, 0])
+    assert covered.mean() > 0.995 and (covered.all() or log.robot == 4)
 
 
 @needs_data
@@ -313,7 +316,7 @@ def test_real_odometry_yaw_rate_leads_truth(real):
     log, _ = real
     dt = 0.01
     grid = np.arange(log.t0, log.t_end, dt)
-    heading = np.convolve(np.unwrap(log.truth_at(grid)[:, 2]), np.ones(10) / 10, mode="same")
+    heading = np.convolve(np.unwrap(log.truth_at(grid, max_gap=np.inf)[:, 2]), np.ones(10) / 10, mode="same")
     w_truth = np.gradient(heading, dt)[20:-20]
     held = np.clip(np.searchsorted(log.odom_t, grid, side="right") - 1, 0, None)
     w_odom = log.odom_w[held][20:-20]
