@@ -123,5 +123,6 @@ def test_unwritable_path_under_a_file(tmp_path):
 def test_list_names_experiments():
     r = wb("list")
     assert r.returncode == 0
-    names = [line.split()[0] for line in r.stdout.splitlines()]
+    names = [line.split()[0] for line in r.stdout.splitlines() if not line.startswith(" ")]
     assert names == ["omni", "sea", "terrain"]
+    assert "  estimators: geometric, rls, window-rls, ekf, gtsam, isam2" in r.stdout

@@ -6,8 +6,9 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
+import workbench
 from workbench.estimation.angles import from_arcmin
-from workbench.experiments.sea import ar_filter, report, run
+from workbench.experiments.sea import ar_filter, evaluate, report, run
 from workbench.experiments.sea.estimate import Estimate
 
 
@@ -30,7 +31,7 @@ def test_forecast_errors_flag_elevations_above_the_horizon(paper_cfg):
     forecast[3, 1] = np.nan
     est = Estimate("rls", data.target[:, :2], data.alpha, data.beta, data.range,
                    forecast=forecast, forecast_angles=angles)
-    err, unusable = run.forecast_errors(data, est)
+    err, unusable = evaluate.forecast_errors(data, est)
     assert np.flatnonzero(unusable).tolist() == [3]
     np.testing.assert_allclose(err[: T - L][np.arange(T - L) != 3, :2], [[-3.0, 4.0]] * (T - L - 1))
     np.testing.assert_allclose(err[: T - L][np.arange(T - L) != 3, 2:], 0.0, atol=1e-15)
@@ -41,7 +42,7 @@ def test_forecast_errors_flag_elevations_above_the_horizon(paper_cfg):
 def test_forecast_figures_are_robust_and_counted(paper_cfg):
     """Five seeded runs: the AR forecasts' RMSE is ruled by a few early fits, the median not."""
     cfg = replace(paper_cfg, runs=5, estimators=("rls", "window-rls", "ekf"))
-    stats = run.statistics(cfg, run.monte_carlo(cfg, jobs=1))
+    stats = workbench.run("sea", config=cfg, jobs=1).metrics
     json.dumps(stats, allow_nan=False)  # strict JSON: overflowing RMSEs are null, not Infinity
     T, L, n = stats["steps"], cfg.horizon, cfg.order_alpha
     for name in ("rls", "window-rls"):

@@ -9,9 +9,10 @@ import numpy as np
 import pytest
 
 from workbench.experiments.sea import camera as cm
-from workbench.experiments.sea import detect, images, run
+from workbench.experiments.sea import detect, evaluate, images, run
 from workbench.experiments.sea.camera import Camera
 from workbench.experiments.sea.config import SeaConfig
+from workbench.experiments.sea.experiment import EXPERIMENT
 from workbench.experiments.sea.render import Renderer
 from workbench.recording import readback
 
@@ -172,10 +173,10 @@ def test_estimators_coast_through_unseen_steps_anywhere(paper_run):
     data = images.with_angles(d, d.alpha_meas, d.beta_meas, seen)
     assert np.isnan(data.alpha_meas[~seen]).all() and not data.seen[0]
     assert np.isfinite(d.alpha_meas).all()                        # the original is untouched
-    est = run.run_estimators(data, cfg)
-    assert set(est) == set(cfg.estimators)
+    est, failed = EXPERIMENT.estimate(data, cfg)
+    assert set(est) == set(EXPERIMENT.default_estimators) and not failed
     for name, e in est.items():
-        err = run.errors(data, e)
+        err = evaluate.errors(data, e)
         late, ok = err[100:], seen[100:]
         assert np.isfinite(late[ok, 0]).all(), name
         # no runaway azimuth once n = 5 measurements follow a gap (the AR models' first step

@@ -5,6 +5,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
+import workbench
 from workbench.estimation import diffuse_rls as drls
 from workbench.estimation import kalman, metrics
 from workbench.estimation.angles import from_arcmin, to_arcmin, wrap
@@ -136,7 +137,7 @@ def test_noise_free_ar_filters_track_truth(paper_cfg):
 def test_algorithm1_reproduces_table2(paper_cfg):
     """Algorithm 1's RMSE within 10 % of the paper's 20.7 m / 31 m, angles equal to the noise."""
     cfg = replace(paper_cfg, runs=30, estimators=("geometric",))
-    stats = run.statistics(cfg, run.monte_carlo(cfg, jobs=1))["estimators"]["geometric"]
+    stats = workbench.run("sea", config=cfg, jobs=1).metrics["estimators"]["geometric"]
     assert stats["rmse"]["x"] == pytest.approx(20.7, rel=0.10)
     assert stats["rmse"]["y"] == pytest.approx(31.0, rel=0.10)
     assert stats["rmse"]["alpha"] == pytest.approx(0.88, rel=0.05)
@@ -146,7 +147,7 @@ def test_algorithm1_reproduces_table2(paper_cfg):
 def test_ekf_consistent_over_monte_carlo(paper_cfg):
     """The EKF's ANEES (4 states) inside the 95 % chi-square band over 20 seeded runs."""
     cfg = replace(paper_cfg, runs=20, estimators=("ekf",))
-    stats = run.statistics(cfg, run.monte_carlo(cfg, jobs=1))["estimators"]["ekf"]
+    stats = workbench.run("sea", config=cfg, jobs=1).metrics["estimators"]["ekf"]
     lo, hi = stats["anees_band"]
     assert lo < stats["anees"] < hi
 

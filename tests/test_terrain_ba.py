@@ -9,7 +9,7 @@ from launcher import DATA
 
 from workbench.experiments.terrain import ba, camera, navigation, ngi
 from workbench.experiments.terrain import dem as dem_mod
-from workbench.experiments.terrain import scene as scene_mod
+from workbench.experiments.terrain import scenario as scene_mod
 from workbench.experiments.terrain.config import TerrainConfig
 
 gtsam = pytest.importorskip("gtsam")
@@ -195,14 +195,14 @@ def test_noisy_tie_points_sigma_estimated_and_outliers_dropped(monkeypatch):
     assert not np.isin(uv2[:6, 0], kept[:, 0]).any()
     e = sc.position[1] - est.position[1]
     assert np.linalg.norm(e) < 2.0, e
-    assert e @ np.linalg.solve(est.extras["position_cov"], e) < 16.27
+    assert e @ np.linalg.solve(est.position_cov, e) < 16.27
 
 
 @pytest.fixture(scope="module")
 def ngi_scene():
     if not (NGI / "dem.tif").is_file():
         pytest.skip(f"no ngi data at {NGI} (set WORKBENCH_DATA)")
-    cfg = TerrainConfig(scene="ngi", size=ngi.DEFAULT_SIZE).validate()
+    cfg = TerrainConfig(scenario="ngi", size=ngi.DEFAULT_SIZE).validate()
     return cfg, ngi.load(cfg)
 
 
@@ -237,12 +237,12 @@ def test_ngi_tie_points_reproject_under_the_true_orientation(ngi_scene):
 @needs_ngi
 @pytest.mark.parametrize("mode, bound", [("common", 22.0), ("ii-only", 11.0)])
 def test_ngi_adjustment_well_below_the_navigation_errors(ngi_scene, mode, bound):
-    """The runs of ``workbench terrain --scene ngi --runs 4`` (seed 0): image II's mean position
+    """The runs of ``workbench terrain --scenario ngi --runs 4`` (seed 0): image II's mean position
     error 15 m (common) and 8 m (ii-only) against the navigation system's 126 and 114 m (the old
     adjustment: 48.5 and 11.0 m); the estimated sigmas are the real pair's, about 0.12 px and
     5-10 m."""
     cfg, sc = ngi_scene
-    cfg = TerrainConfig(scene="ngi", size=ngi.DEFAULT_SIZE, mode=mode).validate()
+    cfg = TerrainConfig(scenario="ngi", size=ngi.DEFAULT_SIZE, mode=mode).validate()
     errors, nav = [], []
     for run in range(4):
         rng = np.random.default_rng([cfg.seed, run])

@@ -68,7 +68,7 @@ def test_same_seed_same_numbers(recorded, tmp_path):
     _, _, stats = recorded
     m = tmp_path / "m.json"
     r = wb("terrain", "--runs", "3", "--seed", "4", "--out", str(tmp_path / "t.rrd"), "--metrics", str(m),
-           "--estimators", "recurrent-search", *SMALL)
+           "--estimators", "recurrent-search,recurrent-search-refined", *SMALL)
     assert r.returncode == 0, r.stderr
     again = json.loads(m.read_text())
     for name in ("navigation", "recurrent-search", "recurrent-search-refined"):
@@ -89,9 +89,9 @@ def test_no_overwrite_without_force(recorded):
     (("--size", "abc"), "--size must look like WIDTHxHEIGHT"),
     (("--size", "8x8"), "at least 16x16"),
     (("--mode", "both"), "unknown error mode"),
-    (("--scene", "ngi", "--size", "200x200", "--data", "."), "does not keep the ngi frames' aspect"),
-    (("--scene", "ngi", "--size", "660x1188", "--data", "."), "larger than the ngi frames"),
-    (("--scene", "ngi", "--data", "/nonexistent/ngi"), "ngi data folder not found"),
+    (("--scenario", "ngi", "--size", "200x200", "--data", "."), "does not keep the ngi frames' aspect"),
+    (("--scenario", "ngi", "--size", "660x1188", "--data", "."), "larger than the ngi frames"),
+    (("--scenario", "ngi", "--data", "/nonexistent/ngi"), "ngi data folder not found"),
 ])
 def test_bad_input_is_one_line_and_exit_2(tmp_path, args, message):
     if "--data" in args and "." in args:  # a folder that exists but is checked after the size
@@ -142,7 +142,7 @@ def test_ngi_bad_folders(tmp_path):
         shutil.copy(f, tmp_path / f.name)
     (tmp_path / "dem.tif").chmod(0o644)
     (tmp_path / "dem.tif").write_bytes((NGI / "dem.tif").read_bytes()[:3000])
-    r = wb("terrain", "--scene", "ngi", "--data", str(tmp_path), "--out", str(tmp_path / "a.rrd"))
+    r = wb("terrain", "--scenario", "ngi", "--data", str(tmp_path), "--out", str(tmp_path / "a.rrd"))
     assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1, r.stderr
     assert "DEM" in r.stderr or "TIFF" in r.stderr
     shutil.copy(NGI / "dem.tif", tmp_path / "dem.tif")
@@ -150,7 +150,7 @@ def test_ngi_bad_folders(tmp_path):
     orient.chmod(0o644)
     orient.write_text("\n".join(line for line in (NGI / "camera_pos_ori.txt").read_text().splitlines()
                                 if "0184" not in line))
-    r = wb("terrain", "--scene", "ngi", "--data", str(tmp_path), "--out", str(tmp_path / "b.rrd"))
+    r = wb("terrain", "--scenario", "ngi", "--data", str(tmp_path), "--out", str(tmp_path / "b.rrd"))
     assert r.returncode == 2 and "no frame 0184" in r.stderr and len(r.stderr.strip().splitlines()) == 1
 
 
@@ -160,7 +160,7 @@ def test_ngi_truth_is_photo_consistent():
     better at it than 50 m away (the check that the OPK convention is read right)."""
     from workbench.experiments.terrain import search
 
-    cfg = TerrainConfig(scene="ngi", size="160x288", mode="ii-only").validate()
+    cfg = TerrainConfig(scenario="ngi", size="160x288", mode="ii-only").validate()
     sc = ngi.load(cfg)
     p = search.make_problem(cfg, sc.k, sc.dem, sc.position, sc.angles, sc.images, sc.interval)
     r_true, _ = search.linearise(p, np.zeros((1, 6)))

@@ -8,7 +8,8 @@ import pytest
 
 from workbench.errors import WorkbenchError
 from workbench.estimation import metrics
-from workbench.experiments.terrain import camera, dem, halftone, navigation, scene, search
+from workbench.experiments.terrain import camera, dem, halftone, navigation, search
+from workbench.experiments.terrain import scenario as scene
 from workbench.experiments.terrain.config import TerrainConfig
 
 

@@ -14,8 +14,9 @@ import pyarrow as pa
 import pytest
 from rerun.chunk import RrdReader
 
-from workbench.experiments.terrain import halftone, navigation, record, run
+from workbench.experiments.terrain import evaluate, halftone, navigation, record, run
 from workbench.experiments.terrain.config import TerrainConfig
+from workbench.experiments.terrain.experiment import EXPERIMENT
 from workbench.paths import data_root
 from workbench.recording import stream
 
@@ -92,10 +93,10 @@ class Recording:
 def recorded(tmp_path_factory) -> tuple[run.RunResult, Recording, np.ndarray]:
     """One small run (64 position x 8 attitude cells, several chunks) recorded like the CLI does."""
     cfg = TerrainConfig(size="100x100", levels_linear=LEVELS[0], levels_angular=LEVELS[1], seed=4).validate()
-    first = run.run_once(cfg, 0, trace=True)
+    first = EXPERIMENT.run_once(cfg, 0, EXPERIMENT.select(), record=True)
     path = tmp_path_factory.mktemp("terrain_record") / "t.rrd"
     with stream.recording(path, "terrain", cfg.to_json(), cfg.seed, record.blueprint(list(first.estimates))) as rec:
-        record.record(rec, first, "| a | b |\n|---|---|\n| 1 | 2 |")
+        record.record(rec, first, [EXPERIMENT.evaluate(first, cfg, 0)], "| a | b |\n|---|---|\n| 1 | 2 |")
     return first, Recording(path), record.local_origin(first.scene)
 
 
@@ -224,7 +225,7 @@ def test_winner_and_functional(recorded):
     assert list(labels) == ["truth", *[n for n in first.estimates if n != "recurrent-search"]]
     markers = r.values("/world/search/markers", "Points3D:positions", 3)
     assert np.allclose(markers[1], first.measured.position[1])         # zero error: the measured position
-    summary = run.summarise(first, 0)
+    summary = evaluate.summarise(first, 0)
     if summary.winner_in_true_position_cell:
         assert np.all(np.abs(markers[0] - centres[-1][0]) <= half + 1e-6)
     f = np.asarray(s.functional)
@@ -243,7 +244,7 @@ def test_error_maps_with_legends(recorded):
     first, r, _ = recorded
     for name in first.estimates:
         err = r.image(f"/errors/{name}", "DepthImage:")
-        assert np.allclose(err, first.ground_errors[name], atol=1e-3)    # metres, image II's pixel grid
+        assert np.allclose(err, evaluate.ground_errors(first)[name], atol=1e-3)    # metres, image II's pixel grid
         assert r.values(f"/errors/{name}", "DepthImage:meter")[0] == 1.0
         lo, top = r.values(f"/errors/{name}", "DepthImage:depth_range")
         assert lo == 0.0 and err.max() <= top <= 1.25 * err.max()          # each map on its own scale
@@ -256,7 +257,7 @@ def test_error_maps_with_legends(recorded):
         title = r.values(f"/errors/{name}/legend/title", "Points2D:labels")[0]
         below = r.values(f"/errors/{name}/legend/title", "Points2D:positions", 2)
         assert len(below) == 2 and below[1, 1] > below[0, 1]      # a spacer under the title keeps it in view
-        assert name in title and f"{halftone.rmse(first.ground_errors[name]):.2f} m" in title
+        assert name in title and f"{halftone.rmse(evaluate.ground_errors(first)[name]):.2f} m" in title
     nav = r.values("/errors/navigation", "DepthImage:depth_range")[1]
     refined = r.values("/errors/recurrent-search-refined", "DepthImage:depth_range")[1]
     assert refined < 0.5 * nav
@@ -313,11 +314,11 @@ def test_glyph_origin_and_tables():
 @pytest.mark.skipif(not (NGI / "dem.tif").is_file(), reason=f"no ngi data at {NGI}")
 def test_real_pair_in_a_local_frame(tmp_path):
     """Real coordinates (millions of metres) shifted to a local origin, the same for everything."""
-    cfg = TerrainConfig(scene="ngi", size="80x144", levels_linear=3, levels_angular=1).validate()
-    first = run.run_once(cfg, 0, trace=True)
+    cfg = TerrainConfig(scenario="ngi", size="80x144", levels_linear=3, levels_angular=1).validate()
+    first = EXPERIMENT.run_once(cfg, 0, EXPERIMENT.select(), record=True)
     path = tmp_path / "ngi.rrd"
     with stream.recording(path, "terrain", cfg.to_json(), cfg.seed, record.blueprint(list(first.estimates))) as rec:
-        record.record(rec, first, "table")
+        record.record(rec, first, [EXPERIMENT.evaluate(first, cfg, 0)], "table")
     r, origin = Recording(path), record.local_origin(first.scene)
     assert np.abs(origin[:2]).max() > 1e5 and origin[2] == 0.0
     cam = r.values("/world/cameras/truth/II", "Transform3D:translation")

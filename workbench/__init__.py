@@ -1,4 +1,13 @@
-"""The workbench: paper estimators against GTSAM baselines, recorded to Rerun."""
+"""The workbench: paper estimators against GTSAM baselines, recorded to Rerun.
+
+The Python API (imported on first use, so ``import workbench`` stays light):
+
+* ``workbench.run(experiment, scenario=..., runs=..., estimators=[...], out=..., **overrides)``:
+  run an experiment, your own estimators beside the built-ins (:func:`workbench.api.run`);
+* ``workbench.configure(experiment, scenario, **overrides)``: the config it would use;
+* ``workbench.experiment(name)``: the experiment's contract (scenarios, estimator table, types);
+* ``@workbench.estimator(description=..., causal=..., covariances=...)``: describe your estimator.
+"""
 
 from importlib.metadata import PackageNotFoundError, version
 
@@ -6,3 +15,21 @@ try:
     __version__ = version("workbench")
 except PackageNotFoundError:  # running from a source tree that is not installed
     __version__ = "0.0.0+unknown"
+
+__all__ = ["run", "configure", "experiment", "estimator", "Result"]
+
+
+def __getattr__(name: str):
+    if name in ("run", "configure", "Result"):
+        from workbench import api
+
+        return getattr(api, name)
+    if name == "experiment":
+        from workbench.experiments import get
+
+        return get
+    if name == "estimator":
+        from workbench.experiments.plugins import estimator
+
+        return estimator
+    raise AttributeError(f"module 'workbench' has no attribute {name!r}")

@@ -9,3 +9,8 @@ def require(condition: bool, message: str) -> None:
     """Raise :class:`WorkbenchError` with ``message`` unless ``condition`` holds."""
     if not condition:
         raise WorkbenchError(message)
+
+
+class DataNotFound(WorkbenchError):
+    """Real data that is not where it was looked for: the demo skips a scenario for this
+    reason alone; every other error fails it."""

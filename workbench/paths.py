@@ -5,7 +5,7 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-from workbench.errors import WorkbenchError
+from workbench.errors import DataNotFound, WorkbenchError
 
 PROJECT_ROOT = Path(__file__).resolve().parent.parent
 
@@ -23,7 +23,7 @@ def data_file(given: Path | None, default_relative: str) -> Path:
     path = Path(given).expanduser() if given is not None else data_root() / default_relative
     if not path.exists():
         hint = "" if given is not None else " (set WORKBENCH_DATA or pass --data)"
-        raise WorkbenchError(f"data file not found: {path}{hint}")
+        raise DataNotFound(f"data file not found: {path}{hint}")
     if not path.is_file():
         raise WorkbenchError(f"not a file: {path}")
     return path

@@ -1,4 +1,12 @@
-"""What every omni estimator returns: poses at some steps, their covariances, and the map."""
+"""What every omni estimator returns: poses at some steps, their covariances, and the map.
+
+A researcher's estimator ``my_slam(data: OmniData, cfg: OmniConfig) -> SlamEstimate`` needs
+``pose`` only: at every step (``len(data.t)`` rows) or at the scoring grid ``data.grid``
+(``steps`` may then be left out), or at any increasing steps it names. Poses are world-frame
+``(x, y, phi)`` in metres and radians; ``cov`` their ``(3, 3)`` covariances (world frame,
+symmetric positive semi-definite); a NaN row is "no estimate at this step". The map is
+optional: landmark estimates ``(S, N, 2)`` at ``map_steps`` (NaN while not initialised).
+"""
 
 from __future__ import annotations
 
@@ -20,15 +28,15 @@ class SlamEstimate:
     accepted)`` of every initialisation try.
     """
 
-    name: str
-    steps: np.ndarray
-    pose: np.ndarray
-    cov: np.ndarray | None
-    map_steps: np.ndarray
-    map_mean: np.ndarray
-    map_cov: np.ndarray | None
-    first_seen: np.ndarray
-    init_step: np.ndarray
+    name: str = ""
+    steps: np.ndarray | None = None
+    pose: np.ndarray | None = None
+    cov: np.ndarray | None = None
+    map_steps: np.ndarray | None = None
+    map_mean: np.ndarray | None = None
+    map_cov: np.ndarray | None = None
+    first_seen: np.ndarray | None = None
+    init_step: np.ndarray | None = None
     seconds: float = 0.0
     failures: int = 0
     attempts: list = field(default_factory=list)
@@ -40,3 +48,47 @@ class SlamEstimate:
     @property
     def final_map_cov(self) -> np.ndarray | None:
         return None if self.map_cov is None or not len(self.map_cov) else self.map_cov[-1]
+
+
+def check(est: SlamEstimate, data, cfg, estimator) -> SlamEstimate:
+    """An estimator's answer against this type's contract; the optional parts filled (no map,
+    ``steps`` from the pose's length); the name set. Raises
+    :class:`~workbench.experiments.contract.EstimateError` naming what is wrong."""
+    from workbench.experiments.contract import EstimateError, as_array, psd, whole_rows
+
+    if not isinstance(est, SlamEstimate):
+        raise EstimateError(f"returned {type(est).__name__}, not an omni SlamEstimate")
+    if est.pose is None:
+        raise EstimateError("the estimate has no pose")
+    pose = as_array(est.pose, "pose", (None, 3))
+    K, N = len(data.t), len(data.landmarks)
+    if est.steps is None:
+        if len(pose) == K:
+            est.steps = np.arange(K)
+        elif data.grid is not None and len(pose) == len(data.grid):
+            est.steps = data.grid.copy()
+        else:
+            raise EstimateError(f"pose has {len(pose)} rows: give steps, or a pose per step ({K}) "
+                                f"or per grid step ({len(data.grid)})")
+    steps = np.asarray(est.steps)
+    if steps.shape != (len(pose),) or steps.dtype.kind not in "iu":
+        raise EstimateError(f"steps must be {len(pose)} integer step indices, got {steps.dtype} {steps.shape}")
+    if len(steps) and (steps.min() < 0 or steps.max() >= K or np.any(np.diff(steps) <= 0)):
+        raise EstimateError(f"steps must increase strictly within 0..{K - 1}")
+    whole_rows(pose, "pose", allow_empty=False)
+    if est.cov is not None:
+        psd(as_array(est.cov, "cov", (len(pose), 3, 3)), "cov", None, estimator)
+    if est.map_steps is None:
+        est.map_steps, est.map_mean, est.map_cov = np.zeros(0, int), np.zeros((0, N, 2)), None
+    else:
+        S = len(est.map_steps)
+        est.map_mean = as_array(est.map_mean, "map_mean", (S, N, 2))
+        if est.map_cov is not None:
+            psd(as_array(est.map_cov, "map_cov", (S, N, 2, 2)), "map_cov", None, estimator)
+    for what in ("first_seen", "init_step"):
+        if getattr(est, what) is None:
+            setattr(est, what, np.full(N, -1))
+        elif np.shape(getattr(est, what)) != (N,):
+            raise EstimateError(f"{what} must have one entry per landmark ({N})")
+    est.name, est.steps, est.pose = estimator.name, steps, pose
+    return est

@@ -36,7 +36,7 @@ from gtsam.symbol_shorthand import L, X
 from workbench.estimation.angles import wrap
 from workbench.experiments.omni.config import OmniConfig
 from workbench.experiments.omni.estimate import SlamEstimate
-from workbench.experiments.omni.scenario import OmniData
+from workbench.experiments.omni.scenario import OmniData, keyframe_steps
 from workbench.experiments.omni.triangulation import rays
 
 FLOOR = 1e-10  # variance floor: a one-step odometry covariance is rank 2
@@ -67,19 +67,9 @@ class Keyframes:
 
 
 def keyframes(data: OmniData, cfg: OmniConfig) -> Keyframes:
+    """The graph's skeleton on the dataset's grid (:func:`.scenario.keyframe_steps`)."""
     epochs = dict(data.epochs())
-    marks = set(epochs)
-    marks.add(0)
-    # at least one keyframe every keyframe_every seconds
-    t = data.t
-    last = 0.0
-    for k in range(len(t)):
-        if k in marks:
-            last = t[k]
-        elif t[k] - last >= cfg.keyframe_every:
-            marks.add(k)
-            last = t[k]
-    steps = np.array(sorted(marks), int)
+    steps = data.grid if data.grid is not None else keyframe_steps(data, cfg.keyframe_every)
     between = []
     zero = np.zeros(3)
     dt = data.dt

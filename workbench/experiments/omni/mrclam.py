@@ -44,7 +44,7 @@ from pathlib import Path
 
 import numpy as np
 
-from workbench.errors import WorkbenchError
+from workbench.errors import DataNotFound, WorkbenchError
 from workbench.estimation.angles import wrap
 
 ROBOT_SUBJECTS = frozenset(range(1, 6))
@@ -229,7 +229,7 @@ def load(folder: Path, robot: int, t_start: float | None = None, t_end: float | 
 def _check_folder(folder: Path) -> Path:
     folder = Path(folder).expanduser()
     if not folder.exists():
-        raise WorkbenchError(f"MRCLAM folder not found: {folder} (set WORKBENCH_DATA or pass --data)")
+        raise DataNotFound(f"MRCLAM folder not found: {folder} (set WORKBENCH_DATA or pass --data)")
     if not folder.is_dir():
         raise WorkbenchError(f"not a folder: {folder} (expected an MRCLAM dataset folder)")
     return folder

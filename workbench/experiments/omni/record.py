@@ -19,7 +19,8 @@ import rerun as rr
 import rerun.blueprint as rrb
 
 from workbench.estimation import metrics
-from workbench.experiments.omni.run import RunResult, RunSummary, mc_curves, on_grid, pose_errors, pose_nees
+from workbench.experiments.omni.evaluate import RunSummary, mc_curves, on_grid
+from workbench.experiments.omni.run import RunResult
 from workbench.recording import draw
 
 TL = "time"
@@ -100,8 +101,10 @@ def _pending(first: RunResult, attempts: list) -> tuple[np.ndarray, np.ndarray]:
 
 
 def record(rec: rr.RecordingStream, first: RunResult, runs: list[RunSummary], table_md: str) -> None:
-    """Log run 0 in full, the Monte Carlo curves over all runs, and the results table."""
+    """Log run 0 in full (``runs[0]`` is its evaluation), the Monte Carlo curves over all
+    runs, and the results table."""
     d, grid = first.data, first.grid
+    zero = runs[0]
     t = d.t[grid]
     truth = d.truth[grid]
     rec.log("/world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
@@ -117,7 +120,7 @@ def record(rec: rr.RecordingStream, first: RunResult, runs: list[RunSummary], ta
     ray_len = float(min(d.max_range, 30.0)) if np.isfinite(d.max_range) else 10.0
     band1 = metrics.chi2_band(3, 1)
     for name, est in first.estimates.items():
-        rgb = draw.color(name)
+        rgb = first.estimators[name].color
         base = f"/map/{name}"
         pose, cov = on_grid(est, grid)
         draw.track(rec, f"{base}/path", pose[:, :2], rgb, 0.08)
@@ -134,14 +137,12 @@ def record(rec: rr.RecordingStream, first: RunResult, runs: list[RunSummary], ta
         if est.attempts:
             pt, clouds = _pending(first, est.attempts)
             draw.point_sets(rec, f"{base}/pending", TL, pt, clouds, (255, 140, 0), 0.12, 0.1)
-        e = pose_errors(truth, pose)
+        e, s = zero.errors[name], zero.sigmas[name]
         draw.scalars(rec, f"/errors/position/{name}", TL, t, np.hypot(e[:, 0], e[:, 1]), name, rgb)
         draw.scalars(rec, f"/errors/heading/{name}", TL, t, np.degrees(e[:, 2]), name, rgb)
-        var = np.clip(np.diagonal(cov, axis1=1, axis2=2), 0.0, None)
-        draw.scalars(rec, f"/sigma/position/{name}", TL, t, np.sqrt(var[:, 0] + var[:, 1]), name, rgb)
-        draw.scalars(rec, f"/sigma/heading/{name}", TL, t, np.degrees(np.sqrt(var[:, 2])),
-                     name, rgb)
-        draw.scalars(rec, f"/nees/{name}", TL, t, pose_nees(e, cov), name, rgb)
+        draw.scalars(rec, f"/sigma/position/{name}", TL, t, np.hypot(s[:, 0], s[:, 1]), name, rgb)
+        draw.scalars(rec, f"/sigma/heading/{name}", TL, t, np.degrees(s[:, 2]), name, rgb)
+        draw.scalars(rec, f"/nees/{name}", TL, t, zero.nees[name], name, rgb)
     grey = (150, 150, 150)
     draw.scalars(rec, "/nees/band_lo", TL, t, np.full_like(t, band1[0]), "95 % low", grey, 1.0)
     draw.scalars(rec, "/nees/band_hi", TL, t, np.full_like(t, band1[1]), "95 % high", grey, 1.0)
@@ -149,7 +150,7 @@ def record(rec: rr.RecordingStream, first: RunResult, runs: list[RunSummary], ta
     curves = mc_curves(runs)
     mt = runs[0].t
     for name, c in curves.items():
-        rgb = draw.color(name)
+        rgb = first.estimators[name].color
         draw.scalars(rec, f"/monte_carlo/position/{name}", TL, mt, c["position"], name, rgb)
         draw.scalars(rec, f"/monte_carlo/heading/{name}", TL, mt, c["heading"], name, rgb)
         draw.scalars(rec, f"/monte_carlo/nees/{name}", TL, mt, c["nees"], name, rgb)

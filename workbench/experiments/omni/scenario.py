@@ -19,10 +19,16 @@ from workbench.experiments.omni.motion import Motion
 
 @dataclass
 class OmniData:
-    """Odometry, bearings and truth of one run.
+    """Odometry, bearings and truth of one run: the dataset every omni estimator reads.
 
-    ``controls[k]`` acts from ``t[k]`` to ``t[k+1]``; bearing ``i`` is taken at pose
-    ``meas_step[i]`` of landmark index ``meas_lm[i]`` (a row of ``landmarks``).
+    World frame x, y in metres, headings in radians (counter-clockwise from x). ``t (K,)`` s;
+    ``controls[k]`` acts from ``t[k]`` to ``t[k+1]`` through ``motion`` (the paper's bicycle
+    (V, steering) or MRCLAM's unicycle (v, w)); ``start`` / ``start_cov`` the known start pose
+    ``(x, y, phi)``. Bearing ``i`` (rad, from the heading, wrapped) is taken at pose
+    ``meas_step[i]`` of landmark index ``meas_lm[i]`` (a row of ``landmarks``), with noise
+    ``sigma_bearing`` (rad). ``truth (K, 3)`` and ``landmarks (N, 2)`` are for evaluation: an
+    estimator must not read them. ``grid`` are the steps every estimator is scored at (the
+    bearing epochs, and one at least every ``keyframe_every`` seconds).
     """
 
     t: np.ndarray
@@ -41,6 +47,7 @@ class OmniData:
     max_range: float
     label: str
     walls: np.ndarray | None = None
+    grid: np.ndarray | None = None
 
     @property
     def dt(self) -> np.ndarray:
@@ -57,6 +64,22 @@ class OmniData:
         cuts = np.flatnonzero(np.diff(self.meas_step)) + 1
         groups = np.split(np.arange(len(self.meas_step)), cuts)
         return [(int(self.meas_step[g[0]]), g) for g in groups]
+
+
+def keyframe_steps(data: OmniData, every: float) -> np.ndarray:
+    """The scoring grid (and the graph's keyframes): every bearing epoch, the start, and a step
+    at least every ``every`` seconds, so a stretch without landmarks still has poses."""
+    marks = {s for s, _ in data.epochs()}
+    marks.add(0)
+    t = data.t
+    last = 0.0
+    for k in range(len(t)):
+        if k in marks:
+            last = t[k]
+        elif t[k] - last >= every:
+            marks.add(k)
+            last = t[k]
+    return np.array(sorted(marks), int)
 
 
 def world(cfg: OmniConfig) -> np.ndarray:

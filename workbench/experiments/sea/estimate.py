@@ -1,4 +1,13 @@
-"""What every sea estimator returns: plain arrays, no knowledge of Rerun."""
+"""What every sea estimator returns: plain arrays, no knowledge of Rerun.
+
+A researcher's estimator ``my_filter(data: SeaData, cfg: SeaConfig) -> Estimate`` needs to fill
+``position`` only; the camera-relative angles and range are derived from it (by
+:func:`from_positions`) where left out. The frame is the sea's: x east, y north, metres, the
+camera at ``data.observer`` (true) / ``data.observer_meas`` (what an estimator knows), height
+``data.height``; ``data.target`` is the truth (for evaluation; an estimator must not read it).
+Rows are steps ``data.t``; a row of NaN is "no estimate at this step" (a partly-NaN row is an
+error); covariances must be symmetric positive semi-definite where the position is finite.
+"""
 
 from __future__ import annotations
 
@@ -15,15 +24,15 @@ from workbench.experiments.sea.scenario import SeaData
 class Estimate:
     """Per-step estimates of one estimator on one run; NaN where it has none."""
 
-    name: str
-    position: np.ndarray                  # (T, 2)
-    alpha: np.ndarray                     # (T,)
-    beta: np.ndarray                      # (T,)
-    range: np.ndarray                     # (T,)
-    seconds: float = 0.0
-    covariance: np.ndarray | None = None  # (T, 2, 2) position covariance
-    state_cov: np.ndarray | None = None   # (T, 4, 4) for NEES, where the estimator has one
-    velocity: np.ndarray | None = None    # (T, 2)
+    name: str = ""                        # set by the workbench from the estimator table
+    position: np.ndarray | None = None    # (T, 2) x, y of the object, m (required)
+    alpha: np.ndarray | None = None       # (T,) azimuth from the course, rad [derived from position]
+    beta: np.ndarray | None = None        # (T,) elevation below the horizon, rad [derived]
+    range: np.ndarray | None = None       # (T,) horizontal range from the measured camera, m [derived]
+    seconds: float = 0.0                  # set by the workbench
+    covariance: np.ndarray | None = None  # (T, 2, 2) position covariance, m^2
+    state_cov: np.ndarray | None = None   # (T, 4, 4) of (x, y, vx, vy), for NEES (needs velocity)
+    velocity: np.ndarray | None = None    # (T, 2) m/s
     forecast: np.ndarray | None = None    # (T, L, 2) positions 1..L steps ahead of each step
     forecast_angles: np.ndarray | None = None  # (T, L, 2) alpha, beta ahead (algorithms 2-3)
 
@@ -58,3 +67,42 @@ def from_angles(name: str, data: SeaData, alpha: np.ndarray, beta: np.ndarray, *
     """An estimate from angles through the geometric inverse (3)-(5)."""
     xy, d = geometry.position(alpha, beta, data.observer_meas, data.course, data.height)
     return Estimate(name=name, position=xy, alpha=alpha, beta=beta, range=d, **kw)
+
+
+def check(est: Estimate, data: SeaData, cfg, estimator) -> Estimate:
+    """An estimator's answer against this type's contract (shapes, whole-row NaNs, PSD
+    covariances); the angles and range derived from the position where left out; the name set.
+    Raises :class:`~workbench.experiments.contract.EstimateError` naming what is wrong."""
+    from workbench.experiments.contract import EstimateError, as_array, psd, whole_rows
+
+    if not isinstance(est, Estimate):
+        raise EstimateError(f"returned {type(est).__name__}, not a sea Estimate")
+    T = data.steps
+    if est.position is None:
+        raise EstimateError("the estimate has no position")
+    pos = as_array(est.position, "position", (T, 2))
+    ok = whole_rows(pos, "position", allow_empty=False)
+    cov = None if est.covariance is None else as_array(est.covariance, "covariance", (T, 2, 2))
+    if cov is not None:
+        psd(cov, "covariance", ok, estimator)
+    if est.state_cov is not None:
+        sc = as_array(est.state_cov, "state_cov", (T, 4, 4))
+        if est.velocity is None:
+            raise EstimateError("state_cov needs velocity")
+        psd(sc, "state_cov", None, estimator)
+    if est.velocity is not None:
+        whole_rows(as_array(est.velocity, "velocity", (T, 2)), "velocity")
+    if est.forecast is not None:  # (a forecast may lack some horizons: an angle above the horizon)
+        as_array(est.forecast, "forecast", (T, None, 2))
+    if est.forecast_angles is not None:
+        as_array(est.forecast_angles, "forecast_angles", (T, None, 2))
+    est.name = estimator.name
+    if est.alpha is None or est.beta is None or est.range is None:
+        derived = from_positions(est.name, data, pos, covariance=cov)
+        est.alpha = derived.alpha if est.alpha is None else est.alpha
+        est.beta = derived.beta if est.beta is None else est.beta
+        est.range = derived.range if est.range is None else est.range
+    for what in ("alpha", "beta", "range"):
+        setattr(est, what, as_array(getattr(est, what), what, (T,)))
+    est.position = pos
+    return est

@@ -19,15 +19,14 @@ Entity layout (timeline ``time``, seconds of the recorded run):
 
 from __future__ import annotations
 
-import warnings
-
 import numpy as np
 import rerun as rr
 import rerun.blueprint as rrb
 
 from workbench.estimation import metrics
 from workbench.estimation.angles import to_arcmin
-from workbench.experiments.sea.run import RunResult, RunSummary
+from workbench.experiments.sea.evaluate import RunSummary, curves
+from workbench.experiments.sea.run import RunResult
 from workbench.recording import draw
 
 TL = "time"
@@ -70,7 +69,8 @@ def blueprint(names: list[str], images: bool = False) -> rrb.Blueprint:
 
 
 def record(rec: rr.RecordingStream, first: RunResult, runs: list[RunSummary], table_md: str) -> None:
-    """Log run 0 in full, the Monte Carlo curves over all runs, and the results table."""
+    """Log run 0 in full (``runs[0]`` is its evaluation), the Monte Carlo curves over all
+    runs, and the results table."""
     d = first.data
     t = d.t
     rec.log("/map", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
@@ -92,7 +92,7 @@ def record(rec: rr.RecordingStream, first: RunResult, runs: list[RunSummary], ta
     draw.scalars(rec, "/series/range/truth", TL, t, d.range, "truth", draw.color("truth"))
 
     for name, est in first.estimates.items():
-        rgb = draw.color(name)
+        rgb = first.estimators[name].color
         base = f"/map/{name}"
         draw.track(rec, f"{base}/track", est.position, rgb, 0.5)
         draw.moving_point(rec, f"{base}/position", TL, t, est.position, rgb, 3.0, name)
@@ -103,22 +103,18 @@ def record(rec: rr.RecordingStream, first: RunResult, runs: list[RunSummary], ta
         draw.scalars(rec, f"/series/alpha/{name}", TL, t, to_arcmin(est.alpha), name, rgb)
         draw.scalars(rec, f"/series/beta/{name}", TL, t, to_arcmin(est.beta), name, rgb)
         draw.scalars(rec, f"/series/range/{name}", TL, t, est.range, name, rgb)
-        e = first.errors[name]
+        e = runs[0].errors[name]
         draw.scalars(rec, f"/errors/x/{name}", TL, t, e[:, 0], name, rgb)
         draw.scalars(rec, f"/errors/y/{name}", TL, t, e[:, 1], name, rgb)
         draw.scalars(rec, f"/errors/alpha/{name}", TL, t, to_arcmin(e[:, 2]), name, rgb)
         draw.scalars(rec, f"/errors/beta/{name}", TL, t, to_arcmin(e[:, 3]), name, rgb)
 
-    for name in first.estimates:
-        E = np.stack([r.errors[name][:, :2] for r in runs])
-        with np.errstate(invalid="ignore"), warnings.catch_warnings():
-            warnings.simplefilter("ignore", RuntimeWarning)  # steps no run has (a bad frame in each)
-            curve = np.sqrt(np.nanmean(np.sum(E**2, axis=2), axis=0)) if np.isfinite(E).any() else None
-        if curve is not None:
-            draw.scalars(rec, f"/monte_carlo/position_rmse/{name}", TL, t, curve, name, draw.color(name))
-    for name in runs[0].nees:
-        N = np.nanmean(np.stack([r.nees[name] for r in runs]), axis=0)
-        draw.scalars(rec, f"/monte_carlo/nees/{name}", TL, t, N, f"{name} ANEES", draw.color(name))
+    for name, c in curves(runs).items():
+        rgb = first.estimators[name].color
+        if "position_rmse" in c:
+            draw.scalars(rec, f"/monte_carlo/position_rmse/{name}", TL, t, c["position_rmse"], name, rgb)
+        if "nees" in c:
+            draw.scalars(rec, f"/monte_carlo/nees/{name}", TL, t, c["nees"], f"{name} ANEES", rgb)
     if runs[0].nees:
         lo, hi = metrics.chi2_band(4, len(runs))
         draw.scalars(rec, "/monte_carlo/nees/bound_lo", TL, t, np.full_like(t, lo), "95 % low",

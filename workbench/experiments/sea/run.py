@@ -1,344 +1,60 @@
-"""Configure -> simulate or load -> estimate (every estimator, same data) -> evaluate.
+"""Configure -> **data -> estimate**: run k's dataset and every estimator on it.
 
-One run gives a :class:`RunResult`; Monte Carlo runs go over processes and are reduced to
-the statistics of Table 2 (time averages per run, then mean and spread over runs).
+A dataset is made (simulated, or a real AIS ship's track) and seeded by ``(seed, run)``; with
+``from_images`` the frames are rendered and the angles detected from them, and the estimators
+run once more on the simulated angles of the same run for comparison. Evaluation is
+:mod:`.evaluate`'s.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 
 import numpy as np
 
-from workbench import montecarlo
-from workbench.estimation import metrics
-from workbench.estimation.angles import to_arcmin, wrap
-from workbench.experiments.sea import ais, ar_filter, ekf, geometric, images, smoother
+from workbench.experiments.contract import Estimator, RunContext, estimate_all
 from workbench.experiments.sea.config import SeaConfig
-from workbench.experiments.sea.estimate import Estimate
-from workbench.experiments.sea.paper import TABLE2
+from workbench.experiments.sea.estimate import Estimate, check
 from workbench.experiments.sea.scenario import SeaData, simulate
-
-QUANTITIES = ("x", "y", "alpha", "beta", "range")
 
 
 @dataclass
 class RunResult:
-    """One run: its data, every estimate, and per-estimator error series ``(T, 5)``."""
+    """One run: its data and every estimate (and what failed)."""
 
     data: SeaData
     estimates: dict[str, Estimate]
-    errors: dict[str, np.ndarray] = field(default_factory=dict)
-    images: images.ImageStage | None = None                  # the image stage (``from_images``)
-    simulated: dict[str, np.ndarray] | None = None          # errors of every estimator on simulated angles
-    scenario_seen: np.ndarray | None = None                 # the scenario's own seen mask
+    estimators: dict[str, Estimator] = field(default_factory=dict)
+    failed: dict[str, str] = field(default_factory=dict)  # estimators that failed: one line each
+    images: object | None = None                  # the image stage (``from_images``): images.ImageStage
+    simulated: tuple[SeaData, dict[str, Estimate]] | None = None  # the same run on simulated angles
+    scenario_seen: np.ndarray | None = None       # the scenario's own seen mask
 
 
 def make_data(cfg: SeaConfig, run: int) -> SeaData:
     """The run's dataset, seeded by ``(seed, run)`` so runs are independent and repeatable."""
     rng = np.random.default_rng([cfg.seed, run])
     if cfg.scenario == "ais":
+        from workbench.experiments.sea import ais
+
         ship = ais.ship_scenario(cfg.data, cfg.mmsi, cfg.duration, cfg.dt, cfg.ais_range)
         return simulate(cfg, rng, target=ship["target"], observer=ship["observer"],
                         course=ship["course"], label=ship["label"])
     return simulate(cfg, rng)
 
 
-def run_estimators(data: SeaData, cfg: SeaConfig, covariances: bool = False) -> dict[str, Estimate]:
-    """Every selected estimator on the same data, each timed."""
-    shared: dict[str, smoother.FactorSet] = {}
-
-    def factors() -> smoother.FactorSet:
-        if "set" not in shared:
-            shared["set"] = smoother.FactorSet(data, cfg)
-        return shared["set"]
-
-    runners: dict[str, Callable[[], Estimate]] = {
-        "geometric": lambda: geometric.estimate(data),
-        "rls": lambda: ar_filter.estimate(data, cfg, windowed=False),
-        "window-rls": lambda: ar_filter.estimate(data, cfg, windowed=True),
-        "ekf": lambda: ekf.estimate(data, cfg),
-        "gtsam": lambda: smoother.batch(data, cfg, covariances, factors()),
-        "isam2": lambda: smoother.incremental(data, cfg, covariances, factors()),
-    }
-    return montecarlo.timed(runners, cfg.estimators)
-
-
-def errors(data: SeaData, est: Estimate) -> np.ndarray:
-    """Errors ``truth - estimate`` per step: x, y (m), alpha, beta (rad), range (m)."""
-    return np.stack([
-        data.target[:, 0] - est.position[:, 0],
-        data.target[:, 1] - est.position[:, 1],
-        wrap(data.alpha - est.alpha),
-        data.beta - est.beta,
-        data.range - est.range,
-    ], axis=1)
-
-
-def run_once(cfg: SeaConfig, run: int, covariances: bool = False, keep_frames: bool = False) -> RunResult:
-    """One run. With ``from_images`` the estimators take the image stage's angles, and run
-    once more on the simulated angles of the same run for comparison."""
+def run_once(cfg: SeaConfig, run: int, estimators: list[Estimator], record: bool = False) -> RunResult:
+    """One run: every estimator on the same data, each estimate checked (:func:`.estimate.check`).
+    ``record``: the recorded run (covariances from the smoothers, the frames kept)."""
     data = make_data(cfg, run)
+    table = {e.name: e for e in estimators}
     if not cfg.from_images:
-        est = run_estimators(data, cfg, covariances)
-        return RunResult(data, est, {name: errors(data, e) for name, e in est.items()})
-    stage = images.measure(data, cfg, run, keep_frames)
+        est, failed = estimate_all(estimators, data, cfg, RunContext(run, record), check)
+        return RunResult(data, est, table, failed)
+    from workbench.experiments.sea import images
+
+    stage = images.measure(data, cfg, run, record)
     img = images.from_stage(data, stage)
-    est = run_estimators(img, cfg, covariances)
-    sim = {name: errors(data, e) for name, e in run_estimators(data, cfg).items()}
-    return RunResult(img, est, {name: errors(img, e) for name, e in est.items()}, stage, sim, data.seen)
-
-
-@dataclass
-class RunSummary:
-    """What a Monte Carlo worker sends back: small arrays, no GTSAM objects."""
-
-    run: int
-    errors: dict[str, np.ndarray]
-    nees: dict[str, np.ndarray]
-    forecast_err: dict[str, np.ndarray]       # (T, 4) l-step errors x, y (m), alpha, beta (rad)
-    forecast_unusable: dict[str, np.ndarray]  # (T,) an angle forecast with beta <= 0
-    seconds: dict[str, float]
-    seen: np.ndarray
-    t: np.ndarray
-    transient: dict[str, np.ndarray] = field(default_factory=dict)
-    simulated: dict[str, np.ndarray] | None = None  # errors on simulated angles (``from_images``)
-    image: dict | None = None                       # the image stage's errors and flags
-
-
-def summarise(result: RunResult, cfg: SeaConfig, run: int) -> RunSummary:
-    data = result.data
-    nees, fc, unusable = {}, {}, {}
-    truth = data.target
-    for name, est in result.estimates.items():
-        if est.state_cov is not None:
-            e = truth - np.concatenate([est.position, est.velocity], axis=1)
-            ok = np.all(np.isfinite(e), axis=1)
-            n = np.full(data.steps, np.nan)
-            n[ok] = metrics.nees(e[ok], est.state_cov[ok])
-            nees[name] = n
-        if est.forecast is not None:
-            fc[name], unusable[name] = forecast_errors(data, est)
-    transient = {}
-    if cfg.scenario == "impulse" and not cfg.from_images:  # (it would render the run again)
-        transient = impulse_transient(result, cfg, run)
-    image = None
-    st = result.images
-    if st is not None:
-        image = {"errors": st.errors(data), "detected": st.detected, "visible": st.visible,
-                 "horizon": st.true_horizon[:, 0] - st.horizon[:, 0],
-                 "tilt": st.tilt - st.tilt_est, "roll": st.roll - st.roll_est,
-                 "reasons": [r.split(":")[0] for r in st.reasons if r],
-                 "seconds": (st.seconds_render, st.seconds_detect), "arcmin_per_px": st.camera.arcmin_per_pixel,
-                 "size": (st.camera.width, st.camera.height), "pan": st.camera.pan}
-    seen = result.scenario_seen if result.scenario_seen is not None else data.seen
-    return RunSummary(run, result.errors, nees, fc, unusable,
-                      {n: e.seconds for n, e in result.estimates.items()}, seen, data.t,
-                      transient, result.simulated, image)
-
-
-def forecast_errors(data: SeaData, est: Estimate) -> tuple[np.ndarray, np.ndarray]:
-    """Errors of the forecasts made at each step for ``L`` steps ahead, and the unusable ones.
-
-    ``(T, 4)``: x, y (m) of the forecast position, and, where the estimator forecasts the
-    angles (algorithms 2-3), alpha and beta (rad); NaN where there is no forecast or the
-    run ends first. Unusable ``(T,)``: an angle forecast whose elevation is at or above the
-    horizon (``beta <= 0``), so (3)-(5) give it no position.
-    """
-    T, L = data.steps, est.forecast.shape[1]
-    err = np.full((T, 4), np.nan)
-    unusable = np.zeros(T, bool)
-    err[: T - L, :2] = data.target[L:, :2] - est.forecast[: T - L, L - 1]
-    if est.forecast_angles is not None:
-        ahead = est.forecast_angles[: T - L, L - 1]
-        err[: T - L, 2] = wrap(data.alpha[L:] - ahead[:, 0])
-        err[: T - L, 3] = data.beta[L:] - ahead[:, 1]
-        with np.errstate(invalid="ignore"):
-            unusable[: T - L] = np.isfinite(ahead[:, 0]) & (ahead[:, 1] <= 0)
-    return err, unusable
-
-
-TRANSIENT_SKIP = ("isam2",)
-"""Estimators left out of the impulse transient (it reruns each one on the undisturbed data)."""
-
-
-def impulse_transient(result: RunResult, cfg: SeaConfig, run: int) -> dict[str, np.ndarray]:
-    """Azimuth error caused by the impulse alone: the run minus the same run without it.
-
-    ``simulate`` draws the impulse after every other noise, so the ``paper`` scenario with
-    the same seed and run is the identical run, undisturbed; the difference of the two
-    errors is the transient, free of the ordinary noise.
-    """
-    clean_cfg = replace(cfg, scenario="paper",
-                        estimators=tuple(e for e in cfg.estimators if e not in TRANSIENT_SKIP))
-    clean = run_once(clean_cfg, run)
-    return {n: result.errors[n][:, 2] - clean.errors[n][:, 2] for n in clean.errors}
-
-
-def _worker(args: tuple[SeaConfig, int]) -> RunSummary:
-    cfg, run = args
-    return summarise(run_once(cfg, run), cfg, run)
-
-
-def monte_carlo(cfg: SeaConfig, first: RunResult | None = None, jobs: int | None = None,
-                progress: Callable[[int], None] | None = None) -> list[RunSummary]:
-    """Runs ``0 .. runs-1`` (run 0 may be given, already computed with covariances)."""
-    return montecarlo.run_all(_worker, cfg, cfg.runs, summarise(first, cfg, 0) if first is not None else None,
-                              jobs, progress, chunksize=2)
-
-
-def statistics(cfg: SeaConfig, runs: list[RunSummary], label: str = "") -> dict:
-    """Table 2's statistics per estimator (mean and spread over runs) as the metrics JSON."""
-    names = list(runs[0].errors)
-    T = len(runs[0].t)
-    result: dict = {"experiment": "sea", "scenario": cfg.scenario, "seed": cfg.seed,
-                    "runs": len(runs), "steps": T, "label": label, "config": cfg.to_json(),
-                    "units": {"x": "m", "y": "m", "range": "m", "alpha": "arcmin",
-                              "beta": "arcmin", "seconds": "s", "recovery": "s",
-                              "forecast": "m (position), arcmin (alpha, beta)"},
-                    "paper_table2": TABLE2, "estimators": {}}
-    scale = np.array([1.0, 1.0, to_arcmin(1.0), to_arcmin(1.0), 1.0])
-    for name in names:
-        E = np.stack([r.errors[name] for r in runs]) * scale  # (runs, T, 5)
-        b = metrics.bias(E, axis=1)
-        rm = metrics.rmse(E, axis=1)
-        mx = metrics.max_abs(E, axis=1)
-        entry: dict = {
-            "rmse": _named(rm.mean(axis=0)), "rmse_std": _named(rm.std(axis=0)),
-            "bias": _named(b.mean(axis=0)), "bias_std": _named(b.std(axis=0)),
-            "max": _named(mx.mean(axis=0)),
-            "position_rmse": float(np.sqrt(np.nanmean(E[..., 0] ** 2 + E[..., 1] ** 2))),
-            "coverage": float(np.mean(np.isfinite(E[..., 0]))),
-            "seconds": float(np.mean([r.seconds[name] for r in runs])),
-        }
-        if name in runs[0].transient:
-            D = np.stack([r.transient[name] for r in runs]) * scale[2]
-            entry["recovery"] = _recovery(cfg, runs[0].t, D, cfg.sigma_alpha_arcmin)
-        lost = ~runs[0].seen  # the same steps in every run: the scenario's loss window
-        if lost.any() and np.isfinite(E[:, lost, 0]).any():
-            entry["rmse_during_loss"] = _named(metrics.rmse(E[:, lost].reshape(-1, 5), axis=0))
-        if name in runs[0].nees:
-            N = np.stack([r.nees[name] for r in runs])
-            per_step = np.nanmean(N, axis=0)
-            lo, hi = metrics.chi2_band(4, len(runs))
-            entry["anees"] = float(np.nanmean(per_step))
-            entry["anees_band"] = [lo, hi]
-            entry["nees_inside_band"] = float(np.nanmean((per_step >= lo) & (per_step <= hi)))
-        if name in runs[0].forecast_err:
-            F = np.stack([r.forecast_err[name] for r in runs])
-            U = np.stack([r.forecast_unusable[name] for r in runs])
-            entry["forecast"] = _forecast_stats(cfg, F, U)
-            entry["forecast_rmse"] = {**entry["forecast"]["position"]["rmse"], "steps": cfg.horizon}
-        result["estimators"][name] = entry
-    if runs[0].image is not None:
-        result["images"] = image_statistics(runs)
-    if runs[0].simulated is not None:
-        sim = [replace(r, errors=r.simulated, nees={}, forecast_err={}, forecast_unusable={}, transient={},
-                       simulated=None, image=None) for r in runs]
-        result["simulated"] = {"note": "the same runs' estimators on the simulated angles",
-                               "estimators": statistics(cfg, sim, label)["estimators"]}
-    return result
-
-
-def image_statistics(runs: list[RunSummary]) -> dict:
-    """The image stage over runs: angle and pixel errors (truth minus measurement) where detected,
-    per-run bias and RMSE averaged over runs (with their spread); the detection rate over the
-    frames where the object was drawn inside the frame."""
-    E = np.stack([r.image["errors"] for r in runs])              # (runs, T, 4)
-    E = E * np.array([to_arcmin(1.0), to_arcmin(1.0), 1.0, 1.0])
-    with np.errstate(invalid="ignore"):
-        b = np.nanmean(E, axis=1)
-        rm = np.sqrt(np.nanmean(E**2, axis=1))
-    det = np.stack([r.image["detected"] for r in runs])
-    vis = np.stack([r.image["visible"] for r in runs])
-    hz = np.stack([r.image["horizon"] for r in runs])
-    tilt = to_arcmin(np.stack([r.image["tilt"] for r in runs]))
-    roll = to_arcmin(np.stack([r.image["roll"] for r in runs]))
-    reasons: dict[str, int] = {}
-    for r in runs:
-        for why in r.image["reasons"]:
-            reasons[why] = reasons.get(why, 0) + 1
-    render = np.sum([r.image["seconds"][0] for r in runs])
-    detect = np.sum([r.image["seconds"][1] for r in runs])
-    frames = det.size
-    pair = ("alpha", "beta")
-
-    def named(v, keys):
-        return {k: float(x) for k, x in zip(keys, v, strict=True)}
-
-    return {
-        "size": list(runs[0].image["size"]), "arcmin_per_px": runs[0].image["arcmin_per_px"],
-        "pan_deg": float(np.rad2deg(runs[0].image["pan"])),
-        "errors": "truth minus measurement, where detected",
-        "rmse": named(rm.mean(axis=0)[:2], pair), "rmse_std": named(rm.std(axis=0)[:2], pair),
-        "bias": named(b.mean(axis=0)[:2], pair), "bias_std": named(b.std(axis=0)[:2], pair),
-        "rmse_px": named(rm.mean(axis=0)[2:], ("u", "v")), "bias_px": named(b.mean(axis=0)[2:], ("u", "v")),
-        "detection_rate": float((det & vis).sum() / max(vis.sum(), 1)),
-        "false_detections": int((det & ~vis).sum()), "frames": int(frames), "visible_frames": int(vis.sum()),
-        "no_detection": reasons,
-        "horizon": {"rmse_px": _rms(hz[np.isfinite(hz)]), "bias_px": _stat(np.mean, hz[np.isfinite(hz)]),
-                    "tilt_rmse_arcmin": _rms(tilt[np.isfinite(tilt)]),
-                    "roll_rmse_arcmin": _rms(roll[np.isfinite(roll)])},
-        "seconds_per_frame": {"render": float(render / frames), "detect": float(detect / frames)},
-        "frames_per_second": {"detect": float(frames / max(detect, 1e-9)),
-                              "render_and_detect": float(frames / max(render + detect, 1e-9))},
-    }
-
-
-def _forecast_stats(cfg: SeaConfig, F: np.ndarray, unusable: np.ndarray) -> dict:
-    """The l-step forecast errors ``F (runs, T, 4)`` pooled over runs and steps.
-
-    The AR forecasts (algorithms 2-3) are of the angles; their positions come through
-    (3)-(5), where a forecast elevation near zero gives a range of kilometres and one at or
-    above the horizon none at all. A few such forecasts (from the first, barely determined
-    fits) rule any RMSE, so the figures that describe the forecasts are the median and the
-    90th percentile of the absolute errors (positions: the distance), with the count of
-    unusable forecasts; the RMSEs are kept for completeness (``null`` if they overflow).
-    """
-    pos = np.all(np.isfinite(F[..., :2]), axis=-1)
-    ang = np.all(np.isfinite(F[..., 2:]), axis=-1)
-    made = pos | ang
-    dist = np.hypot(F[..., 0], F[..., 1])[pos]
-    out: dict = {
-        "steps": cfg.horizon, "seconds_ahead": cfg.horizon * cfg.dt,
-        "count": int(made.sum()), "unusable": int(unusable.sum()),
-        "unusable_fraction": float(unusable.sum() / max(made.sum(), 1)),
-        "position": {"median": _stat(np.median, dist), "p90": _stat(np.percentile, dist, 90),
-                     "rmse": {"x": _rms(F[..., 0][pos]), "y": _rms(F[..., 1][pos])}},
-    }
-    if ang.any():
-        for q, i in (("alpha", 2), ("beta", 3)):
-            e = np.abs(to_arcmin(F[..., i][ang]))
-            out[q] = {"median_abs": _stat(np.median, e), "p90_abs": _stat(np.percentile, e, 90),
-                      "rmse": _rms(e)}
-    return out
-
-
-def _stat(fn: Callable, x: np.ndarray, *args) -> float | None:
-    return float(fn(x, *args)) if x.size else None
-
-
-def _rms(x: np.ndarray) -> float | None:
-    with np.errstate(over="ignore"):
-        v = float(np.sqrt(np.mean(np.square(x)))) if x.size else float("nan")
-    return v if np.isfinite(v) else None
-
-
-def _named(v: np.ndarray) -> dict[str, float]:
-    return {q: float(x) for q, x in zip(QUANTITIES, v, strict=True)}
-
-
-def _recovery(cfg: SeaConfig, t: np.ndarray, transient: np.ndarray, level: float) -> dict:
-    """How long after the impulse the azimuth transient stays above the camera's noise.
-
-    ``transient`` (runs, T) is the impulse's own effect on the azimuth error (arcmin);
-    recovery is the last time its RMS over runs exceeds ``level`` (sigma_alpha), minus the
-    impulse's end; ``settled`` is False if it still exceeds it at the end of the run.
-    """
-    rms = np.sqrt(np.nanmean(transient**2, axis=0))
-    over = np.flatnonzero((t >= cfg.impulse_start) & (rms > level))
-    last = t[over[-1]] if over.size else cfg.impulse_end
-    return {"seconds": float(max(0.0, last - cfg.impulse_end)), "level_arcmin": level,
-            "settled": not bool(over.size and over[-1] == len(t) - 1),
-            "peak_arcmin": float(np.nanmax(rms))}
+    est, failed = estimate_all(estimators, img, cfg, RunContext(run, record), check)
+    sim, failed_sim = estimate_all(estimators, data, cfg, RunContext(run, False), check)
+    return RunResult(img, est, table, {**failed_sim, **failed}, stage, (data, sim), data.seen)

@@ -68,7 +68,6 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -76,10 +75,8 @@ from workbench.errors import require
 from workbench.experiments.terrain import camera, navigation
 from workbench.experiments.terrain.config import TerrainConfig
 from workbench.experiments.terrain.dem import Dem
-from workbench.experiments.terrain.scene import Scene
-
-if TYPE_CHECKING:
-    from workbench.experiments.terrain.run import Estimate
+from workbench.experiments.terrain.estimate import Estimate
+from workbench.experiments.terrain.scenario import Scene
 
 PIXEL_SIGMA = 0.3
 """The first solve's sigma of a tie point's pixel coordinates (px); re-estimated after it."""
@@ -348,7 +345,6 @@ def adjust(cfg: TerrainConfig, scene: Scene, position: np.ndarray, angles: np.nd
     import gtsam
     from gtsam.symbol_shorthand import L, X
 
-    from workbench.experiments.terrain.run import Estimate
 
     origin = np.array([np.round(position[0, 0]), np.round(position[0, 1]), 0.0])
     dem = Dem(scene.dem.heights, scene.dem.x0 - origin[0], scene.dem.y0 - origin[1], scene.dem.dx, scene.dem.dy)
@@ -403,11 +399,12 @@ def adjust(cfg: TerrainConfig, scene: Scene, position: np.ndarray, angles: np.nd
                     "error_after": graph.error(result), "sigmas": (float(sigmas[0]), float(sigmas[1])),
                     "passes": history, "outliers": int((~keep).sum()), "iterations": iterations,
                     "landmarks": np.array([result.atPoint3(L(j)) for j in idx]) + origin}
+    position_cov = None
     try:
         marg = gtsam.Marginals(graph, result)
         extras["covariance"] = np.stack([marg.marginalCovariance(X(i)) for i in range(2)])
         r2 = out_rot[1]  # Pose3's tangent is (rotation, translation) in the body frame: to world
-        extras["position_cov"] = r2 @ extras["covariance"][1][3:, 3:] @ r2.T
+        position_cov = r2 @ extras["covariance"][1][3:, 3:] @ r2.T
     except RuntimeError:
         extras["covariance"] = None
-    return Estimate(out_pos, camera.angles_from_rotation(out_rot), 0.0, extras)
+    return Estimate(out_pos, camera.angles_from_rotation(out_rot), 0.0, extras, position_cov)

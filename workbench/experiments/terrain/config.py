@@ -16,17 +16,22 @@ Defaults (``spec/terrain.md`` says to choose and document them):
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass
 from pathlib import Path
 
 from workbench.errors import require
+from workbench.experiments.contract import Option, Scenario, apply_scenario, by_scenario, split_list
 
-SCENES = ("synthetic", "ngi")
+# the ngi frames are 640 x 1152: a quarter of each side keeps their aspect and ~24 m pixels
+SCENARIOS: dict[str, Scenario] = {s.name: s for s in (
+    Scenario("synthetic", "a synthetic terrain and texture under a simulated pair (1500 m, 150 mm, 65 % overlap)"),
+    Scenario("ngi", "two real NGI aerial frames (Intergraph DMC, ~5 km up) and their DEM",
+             {"size": "160x288"}, real_data=True),
+)}
 MODES = ("common", "ii-only")
 DISTRIBUTIONS = ("uniform", "gaussian", "maximum")
 HYPOTHESES = ("grid", "sample")
 BANKS = ("batch", "literal")
-ESTIMATORS = ("recurrent-search", "gtsam-ba")
 NGI_FRAMES = ("0182", "0184", "0251", "0253")
 MAX_PIXELS = 2_000_000
 
@@ -45,10 +50,10 @@ def parse_size(text: str) -> tuple[int, int]:
 class TerrainConfig:
     """Everything a terrain run depends on; lengths in m, angles in rad, focal length in mm."""
 
-    scene: str = "synthetic"
+    scenario: str = "synthetic"
     seed: int = 0
     runs: int = 1
-    size: str = "200x200"
+    size: str = by_scenario("200x200")
     mode: str = "common"
     distribution: str = "uniform"
     max_linear: float = 100.0
@@ -81,7 +86,10 @@ class TerrainConfig:
     # the real scene
     data: Path | None = None
     pair: tuple[str, str] = ("0182", "0184")
-    estimators: tuple[str, ...] = field(default=ESTIMATORS)
+    estimators: tuple[str, ...] = ()  # () = the experiment's defaults
+
+    def __post_init__(self) -> None:
+        apply_scenario(self, SCENARIOS)
 
     @property
     def image_size(self) -> tuple[int, int]:
@@ -99,15 +107,14 @@ class TerrainConfig:
 
     def validate(self) -> TerrainConfig:
         """Raise a one-line :class:`WorkbenchError` on any value out of range."""
-        require(self.scene in SCENES, f"unknown scene {self.scene!r}; one of {', '.join(SCENES)}")
+        require(self.scenario in SCENARIOS, f"unknown scenario {self.scenario!r}; one of {', '.join(SCENARIOS)}")
+        require(self.seed >= 0, f"--seed must not be negative (got {self.seed})")
         require(self.mode in MODES, f"unknown error mode {self.mode!r}; one of {', '.join(MODES)}")
         require(self.distribution in DISTRIBUTIONS,
                 f"unknown error distribution {self.distribution!r}; one of {', '.join(DISTRIBUTIONS)}")
         require(self.hypotheses in HYPOTHESES, f"--hypotheses must be one of {', '.join(HYPOTHESES)}")
         require(self.bank in BANKS, f"--bank must be one of {', '.join(BANKS)}")
         require(self.runs >= 1, f"--runs must be at least 1 (got {self.runs})")
-        unknown = [e for e in self.estimators if e not in ESTIMATORS]
-        require(not unknown, f"unknown estimator(s) {', '.join(unknown)}; choose from {', '.join(ESTIMATORS)}")
         for name in ("max_linear", "max_angular"):
             value = getattr(self, name)
             require(math.isfinite(value) and value > 0.0,
@@ -132,7 +139,7 @@ class TerrainConfig:
         require(self.features >= 20, f"--features must be at least 20 (got {self.features})")
         w, h = self.image_size
         require(w * h <= MAX_PIXELS, f"--size {self.size} is over {MAX_PIXELS} pixels")
-        if self.scene == "ngi":
+        if self.scenario == "ngi":
             require(len(self.pair) == 2 and self.pair[0] != self.pair[1] and all(p in NGI_FRAMES for p in self.pair),
                     f"--pair must name two different frames of {', '.join(NGI_FRAMES)}")
         return self
@@ -144,3 +151,35 @@ class TerrainConfig:
         out["sensor_mm"] = list(self.sensor_mm)
         out["pair"] = list(self.pair)
         return out
+
+
+OPTIONS: tuple[Option, ...] = (
+    Option("mode", "Error mode: common (one process, dynamics A) | ii-only.", str),
+    Option("size", "Image size WIDTHxHEIGHT (the paper: 100x100, 200x200, 400x500).", str),
+    Option("max_linear", "Maximum linear navigation error, m."),
+    Option("max_angular", "Maximum angular navigation error, rad."),
+    Option("max_velocity", "common mode: maximum velocity error, m/s."),
+    Option("distribution", "Errors: uniform | gaussian (sigma = max/3) | maximum (+-max).", str),
+    Option("hypotheses", "Hypotheses: grid (full) | sample (N drawn in the cube).", str),
+    Option("levels_linear", "grid: cells per linear axis.", int),
+    Option("levels_angular", "grid: cells per angular axis.", int),
+    Option("samples", "sample: the number of functionals N.", int),
+    Option("node_step", "Node step delta on image I, pixels.", int),
+    Option("sigma_r", "Irradiance noise sigma of the filters (R = sigma^2)."),
+    Option("bank", "Filter bank: batch (closed form, compiled) | literal (node by node).", str),
+    Option("chunk_mb", "literal bank: memory budget of a chunk of hypotheses, MB."),
+    Option("height", "synthetic: flight height over the mean terrain, m."),
+    Option("focal_mm", "synthetic: focal length, mm (frame 160 x 120 mm).", flag="--focal"),
+    Option("overlap", "synthetic: overlap of the pair along the flight."),
+    Option("relief", "synthetic: standard deviation of the terrain heights, m."),
+    Option("texture_scale", "synthetic: correlation length of the texture, m."),
+    Option("image_noise", "synthetic: image noise sigma (irradiance 0..1)."),
+    Option("data", "ngi: the folder [default: <data root>/ngi].", Path),
+    Option("pair", "ngi: the two frames, image I first.", str, parse=split_list),
+)
+"""The terrain experiment's own command-line options (the shared ones are the CLI's)."""
+
+EXTRAS: tuple[Option, ...] = (
+    Option("sweep", "Run the paper's grid instead; write grid.md, grid.csv, PNGs here.", Path),
+    Option("sweep_sizes", "sweep: the image sizes [100x100,200x200,400x500].", str),
+)

@@ -25,7 +25,7 @@ import numpy as np
 
 from workbench.experiments.terrain import navigation, search
 from workbench.experiments.terrain.config import TerrainConfig
-from workbench.experiments.terrain.scene import synthetic_scene
+from workbench.experiments.terrain.scenario import synthetic_scene
 
 LINEAR = (50.0, 100.0, 200.0)
 ANGULAR = (0.001, 0.003, 0.009)

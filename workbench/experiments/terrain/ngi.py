@@ -17,12 +17,12 @@ from pathlib import Path
 
 import numpy as np
 
-from workbench.errors import WorkbenchError, require
+from workbench.errors import DataNotFound, WorkbenchError, require
 from workbench.experiments.terrain import camera
 from workbench.experiments.terrain.camera import Intrinsics
-from workbench.experiments.terrain.config import TerrainConfig
+from workbench.experiments.terrain.config import SCENARIOS, TerrainConfig
 from workbench.experiments.terrain.dem import read_geotiff
-from workbench.experiments.terrain.scene import Scene
+from workbench.experiments.terrain.scenario import Scene
 from workbench.paths import data_root
 
 NATIVE = (640, 1152)
@@ -30,13 +30,14 @@ FOCAL_MM = 120.0
 SENSOR_MM = (92.16, 165.888)
 PREFIX = "3324c_2015_1004_"
 FRAME_FILES = {"0182": "05_0182", "0184": "05_0184", "0251": "06_0251", "0253": "06_0253"}
-DEFAULT_SIZE = "160x288"
+DEFAULT_SIZE = SCENARIOS["ngi"].defaults["size"]
 
 
 def folder(cfg: TerrainConfig) -> Path:
     path = Path(cfg.data).expanduser() if cfg.data is not None else data_root() / "ngi"
     hint = "" if cfg.data is not None else " (set WORKBENCH_DATA or pass --data)"
-    require(path.is_dir(), f"ngi data folder not found: {path}{hint}")
+    if not path.is_dir():
+        raise DataNotFound(f"ngi data folder not found: {path}{hint}")
     return path
 
 

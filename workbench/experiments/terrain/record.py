@@ -37,11 +37,13 @@ import rerun.blueprint as rrb
 from workbench.estimation.angles import wrap
 from workbench.experiments.terrain import camera, halftone, navigation
 from workbench.experiments.terrain.camera import Intrinsics
-from workbench.experiments.terrain.run import ITERATED, REFINED, SEARCH, Estimate, RunResult
-from workbench.experiments.terrain.scene import SUN, Scene
+from workbench.experiments.terrain.estimate import Estimate
+from workbench.experiments.terrain.estimators import ITERATED, REFINED, SEARCH, TABLE
+from workbench.experiments.terrain.evaluate import RunSummary
+from workbench.experiments.terrain.run import RunResult
+from workbench.experiments.terrain.scenario import SUN, Scene
 
-PALETTE = {"truth": (240, 240, 240), "navigation": (235, 70, 70), SEARCH: (255, 165, 0),
-           REFINED: (60, 215, 90), ITERATED: (40, 200, 230), "gtsam-ba": (185, 110, 255)}
+TRUTH = (240, 240, 240)
 COLOUR_NAMES = {"truth": "white", "navigation": "red", SEARCH: "orange", REFINED: "green", ITERATED: "cyan",
                 "gtsam-ba": "violet"}
 BACKGROUND = (24, 28, 34)           # the 3D views' background: the palette reads on it in either theme
@@ -53,9 +55,19 @@ NICE = (1.0, 1.2, 1.5, 2.0, 2.5, 3.0, 4.0, 5.0, 6.0, 8.0, 10.0)  # legend tops, 
 LABEL = (120, 120, 120)             # legend text: readable on the light and the dark theme
 
 
-def color(name: str) -> tuple[int, int, int]:
-    """The estimator's colour (frusta, markers)."""
-    return PALETTE.get(name, (200, 200, 200))
+def color(first: RunResult, name: str) -> tuple[int, int, int]:
+    """The truth's or an estimator's colour (frusta, markers): its row of the estimator table."""
+    if name == "truth":
+        return TRUTH
+    est = first.estimators.get(name) or TABLE.get(name)
+    return est.color if est is not None else (200, 200, 200)
+
+
+def colour_name(first: RunResult, name: str) -> str:
+    """A colour in words for the legend (the built-ins'), or its hex code (a plugin's)."""
+    if name in COLOUR_NAMES and (name == "truth" or first.estimators.get(name, TABLE.get(name)).builtin):
+        return COLOUR_NAMES[name]
+    return "#{:02x}{:02x}{:02x}".format(*color(first, name))
 
 
 def _best(names: list[str]) -> str:
@@ -217,10 +229,10 @@ def _cameras(rec: rr.RecordingStream, first: RunResult, origin: np.ndarray) -> N
     sc = first.scene
     plane = 0.25 * (sc.position[0, 2] - sc.dem.mean_height)
     for i, ex in enumerate(("I", "II")):
-        _camera(rec, f"/world/cameras/truth/{ex}", sc.k, sc.position[i] - origin, sc.angles[i], color("truth"),
+        _camera(rec, f"/world/cameras/truth/{ex}", sc.k, sc.position[i] - origin, sc.angles[i], color(first, "truth"),
                 sc.images[i], plane, 3.0)
         for name, e in first.estimates.items():
-            _camera(rec, f"/world/cameras/{name}/{ex}", sc.k, e.position[i] - origin, e.angles[i], color(name),
+            _camera(rec, f"/world/cameras/{name}/{ex}", sc.k, e.position[i] - origin, e.angles[i], color(first, name),
                     None, plane, 1.5)
 
 
@@ -307,25 +319,25 @@ def _search(rec: rr.RecordingStream, first: RunResult, origin: np.ndarray) -> No
     labels = [f"lowest so far #{b}" for b in best[change]]
     labels[-1] = f"winner #{w}"
     steps = [rr.TimeColumn("hypothesis", sequence=ends[change]), rr.TimeColumn("search", sequence=change)]
-    rec.log("/world/search/winner", rr.Points3D.from_fields(radii=[2.5 * radius], colors=[color(SEARCH)]),
+    rec.log("/world/search/winner", rr.Points3D.from_fields(radii=[2.5 * radius], colors=[color(first, SEARCH)]),
             static=True)
     rec.send_columns("/world/search/winner", indexes=steps,
                      columns=rr.Points3D.columns(positions=pts[best[change]], labels=labels))
-    rec.log("/world/search/winner_cell", rr.Boxes3D.from_fields(half_sizes=[g.cell / 2.0], colors=[color(SEARCH)],
-                                                                radii=[_ui(1.5)], fill_mode="MajorWireframe"),
-            static=True)
+    rec.log("/world/search/winner_cell",
+            rr.Boxes3D.from_fields(half_sizes=[g.cell / 2.0], colors=[color(first, SEARCH)], radii=[_ui(1.5)],
+                                   fill_mode="MajorWireframe"), static=True)
     rec.send_columns("/world/search/winner_cell", indexes=steps,
                      columns=rr.Boxes3D.columns(centers=g.measured - pose[best[change], :3]))
     names = ["truth"] + [name for name in first.estimates if name != SEARCH]
     poses = [estimate_errors(first, (first.scene.position, first.scene.angles))]
     poses += [estimate_errors(first, first.estimates[name]) for name in names[1:]]
-    rec.log("/world/search/markers", rr.Points3D(g(np.stack(poses)), radii=[2.0 * radius],
-                                                 colors=[color(name) for name in names], labels=names), static=True)
+    rec.log("/world/search/markers", rr.Points3D(g(np.stack(poses)), radii=[2.0 * radius], labels=names,
+                                                 colors=[color(first, name) for name in names]), static=True)
     # the functional: every hypothesis, the lowest so far, the winner
     hyp = np.arange(n)
     indexes = [rr.TimeColumn("hypothesis", sequence=hyp), rr.TimeColumn("search", sequence=hyp // max(1, s.chunk))]
     rel = f - f.min()
-    rec.log("/functional", rr.SeriesLines(colors=[color(SEARCH)], names=["I_pq - min I"]), static=True)
+    rec.log("/functional", rr.SeriesLines(colors=[color(first, SEARCH)], names=["I_pq - min I"]), static=True)
     rec.send_columns("/functional", indexes=indexes, columns=rr.Scalars.columns(scalars=rel))
     rec.log("/functional/lowest", rr.SeriesLines(colors=[(40, 140, 255)], names=["lowest so far"], widths=[2.0]),
             static=True)
@@ -348,7 +360,7 @@ def _baseline(rec: rr.RecordingStream, first: RunResult, origin: np.ndarray) -> 
     if ba is None or "landmarks" not in ba.extras:
         return
     lm = np.asarray(ba.extras["landmarks"], float) - origin
-    rgb = color("gtsam-ba")
+    rgb = color(first, "gtsam-ba")
     rec.log("/world/ba/tie_points", rr.Points3D(lm, radii=[_ui(3.0)], colors=[rgb]),
             static=True)
     pick = np.unique(np.linspace(0, len(lm) - 1, min(len(lm), MAX_RAYS)).round().astype(int))
@@ -428,7 +440,7 @@ def _orthophoto(rec: rr.RecordingStream, sc: Scene, best: Estimate, bounds: tupl
 
 def legend(first: RunResult, origin: np.ndarray) -> str:
     """How to read the recording (markdown, after the table)."""
-    frusta = ", ".join(f"{n} {COLOUR_NAMES.get(n, 'grey')}" for n in ["truth", *first.estimates])
+    frusta = ", ".join(f"{n} {colour_name(first, n)}" for n in ["truth", *first.estimates])
     where = ("" if not origin.any() else
              f"; local origin at X = {origin[0]:.0f} m, Y = {origin[1]:.0f} m of the data's projection")
     lines = [
@@ -481,8 +493,9 @@ def narrow_tables(markdown: str, columns: int = 5) -> str:
     return "\n".join(out)
 
 
-def record(rec: rr.RecordingStream, first: RunResult, table_md: str) -> None:
-    """Log run 0: scene, cameras, the search, the baseline's tie points, the halftone models."""
+def record(rec: rr.RecordingStream, first: RunResult, runs: list[RunSummary], table_md: str) -> None:
+    """Log run 0 (``runs[0]`` is its evaluation): scene, cameras, the search, the baseline's
+    tie points, the halftone models and their ground error maps."""
     sc = first.scene
     origin = local_origin(sc)
     rec.log("/world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
@@ -492,7 +505,7 @@ def record(rec: rr.RecordingStream, first: RunResult, table_md: str) -> None:
         _search(rec, first, origin)
     _baseline(rec, first, origin)
     _halftones(rec, first, origin)
-    for name, err in first.ground_errors.items():
+    for name, err in runs[0].ground_maps.items():
         _error_map(rec, name, err)
     _orthophoto(rec, sc, first.estimates[_best(list(first.estimates))], bounds)
     text = narrow_tables(table_md) + "\n" + legend(first, origin)

@@ -1,0 +1,141 @@
+"""The Python API, and the one code path every experiment runs through (the CLI is a thin
+layer over :func:`run`).
+
+>>> import workbench
+>>> res = workbench.run("sea", scenario="paper", runs=10, estimators=["geometric", "gtsam", my_filter])
+>>> res.metrics["estimators"]["my_filter"]["position_rmse"], res.estimates["my_filter"].position
+
+``run`` configures (the scenario's defaults under the overrides), checks every output before
+any work, runs run 0 (kept whole: ``res.first``, ``res.data``, ``res.estimates``) and the other
+Monte Carlo runs over processes (their summaries: ``res.summaries``), reduces them to the
+metrics and the table, writes the recording and the metrics file if asked, and returns. An
+estimator that fails (raises, or returns an estimate that breaks its type) is left out of
+every run, named in ``res.failures`` and the metrics' ``failed``; the others' results stand.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import json
+import time
+import warnings
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from workbench import montecarlo
+from workbench.experiments import get
+from workbench.experiments.contract import Experiment, without
+
+
+@dataclass
+class Result:
+    """What :func:`run` returns."""
+
+    experiment: str
+    config: Any
+    metrics: dict
+    table: str
+    first: Any = None                    # run 0's result: its dataset and every estimate
+    summaries: list = field(default_factory=list)
+    recording: Path | None = None
+    metrics_path: Path | None = None
+    failures: dict[str, str] = field(default_factory=dict)
+    lines: list[str] = field(default_factory=list)  # what the exports wrote
+
+    @property
+    def data(self) -> Any:
+        return self.first.data
+
+    @property
+    def estimates(self) -> dict:
+        return self.first.estimates
+
+
+def configure(experiment: str | Experiment, scenario: str | None = None, **overrides: Any) -> Any:
+    """The config ``run`` would use (validated), for a look before running."""
+    exp = get(experiment) if isinstance(experiment, str) else experiment
+    return exp.configure(scenario, **overrides).validate()
+
+
+def run(experiment: str | Experiment, scenario: str | None = None, *, config: Any = None,
+        estimators: Iterable[Any] | str | None = None,
+        out: str | Path | None = None, metrics: str | Path | None = None, force: bool = False,
+        jobs: int | None = None, spawn: bool = False, serve: bool = False,
+        progress: Callable[[int, int], None] | None = None, extras: dict | None = None,
+        **overrides: Any) -> Result:
+    """Run an experiment: ``runs`` Monte Carlo runs (``seed``, ``runs`` and every other config
+    field as keyword overrides), every selected estimator on each run's data.
+
+    ``config``: a ready config instead of ``scenario`` (the overrides then replace its fields).
+    ``estimators``: names, ``+name`` (the defaults and), ``module:function`` / ``file.py:function``
+    specs, or functions ``(data, cfg) -> Estimate``. ``out``: write run 0's recording there
+    (``.rrd``); ``metrics``: the metrics JSON; neither overwrites without ``force``.
+    ``extras``: the experiment's extra options (e.g. omni's ``export_tum``). ``progress(done,
+    total)`` is called as runs finish.
+    """
+    from workbench.recording import stream
+
+    exp = get(experiment) if isinstance(experiment, str) else experiment
+    extras = dict(extras or {})
+    if config is not None:
+        cfg = dataclasses.replace(config, **{k: v for k, v in overrides.items() if v is not None})
+    else:
+        cfg = exp.configure(scenario, **overrides)
+    chosen = exp.select(estimators if estimators is not None else (cfg.estimators or None))
+    cfg.estimators = tuple(e.name if e.ref in (None, e.name) else f"{e.name}={e.ref}" for e in chosen)
+    cfg.validate()
+    out_path = stream.check_output(Path(out), force) if out is not None else None
+    metrics_path = stream.check_plain_output(Path(metrics), force, "metrics file") if metrics is not None else None
+    exp.check_extras(cfg, extras, force)
+    report = progress or (lambda done, total: None)
+    t0 = time.perf_counter()
+    alternative = exp.instead(cfg, extras, jobs, report)
+    if alternative is not None:
+        table = alternative.pop("_table", "")
+        return Result(exp.name, cfg, alternative, table, lines=alternative.pop("_lines", []))
+
+    done = [0]
+
+    def tick(n: int) -> None:
+        done[0] += n
+        report(done[0], cfg.runs)
+
+    report(0, cfg.runs)
+    first = exp.run_once(cfg, 0, chosen, record=True, threads=min(2, jobs or 2))
+    worker = functools.partial(summarise_run, exp.name, cfg, chosen)
+    summaries = montecarlo.run_all(worker, cfg.runs, exp.evaluate(first, cfg, 0), jobs, tick)
+    failures: dict[str, str] = {}
+    for s in summaries:
+        for name, why in s.failed.items():
+            failures.setdefault(name, f"{why} (run {s.run})")
+    for name, why in first.failed.items():
+        failures.setdefault(name, f"{why} (run 0)")
+    gone = set(failures)
+    summaries = [without(s, gone) for s in summaries]
+    first = without(first, gone)
+    stats = exp.statistics(cfg, summaries, exp.label(first))
+    stats["estimator_table"] = {e.name: e.describe() for e in chosen if e.name not in gone}
+    if failures:
+        stats["failed"] = failures
+    stats["wall_seconds"] = time.perf_counter() - t0
+    table = exp.table(stats)
+    if out_path is not None:
+        with stream.recording(out_path, exp.name, cfg.to_json(), cfg.seed, exp.blueprint(first),
+                              spawn=spawn, serve=serve) as rec:
+            exp.record(rec, first, summaries, table)
+        stats["recording"] = str(out_path)
+    lines = exp.export(first, stats, extras, force)
+    if metrics_path is not None:
+        stream.write_text_atomic(metrics_path, json.dumps(stats, indent=2))
+    for name, why in failures.items():
+        warnings.warn(f"estimator {name!r} failed: {why}", RuntimeWarning, stacklevel=2)
+    return Result(exp.name, cfg, stats, table, first, summaries, out_path, metrics_path, failures, lines)
+
+
+def summarise_run(experiment: str, cfg: Any, estimators: list, run: int) -> Any:
+    """One Monte Carlo run, in whatever process: its dataset, every estimator, its summary."""
+    exp = get(experiment)
+    return exp.evaluate(exp.run_once(cfg, run, estimators), cfg, run)

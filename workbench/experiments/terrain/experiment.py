@@ -1,0 +1,120 @@
+"""The terrain experiment (paper 001) as the workbench sees it: the one object the CLI, the
+demo, the Python API and the sweeps use."""
+
+from __future__ import annotations
+
+import time
+from dataclasses import replace
+from pathlib import Path
+
+from workbench.experiments.contract import Demo, Estimator, Experiment, split_list
+from workbench.experiments.terrain.config import EXTRAS, OPTIONS, SCENARIOS, TerrainConfig
+from workbench.experiments.terrain.estimate import Estimate
+
+
+class Terrain(Experiment):
+    name = "terrain"
+    description = ("paper 001: aerial stereo pair + DEM; recurrent-search estimation (a Kalman filter bank "
+                   "over error hypotheses) against GTSAM bundle adjustment; synthetic and the real NGI frames")
+    config_type = TerrainConfig
+    scenarios = SCENARIOS
+    options = OPTIONS
+    extras = EXTRAS
+    required = ("navigation",)
+    estimate_type = Estimate
+    demo = (  # about 9 s a run
+        Demo("terrain-common", "synthetic", {"mode": "common"}, max_runs=4),
+        Demo("terrain-ii-only", "synthetic", {"mode": "ii-only"}, max_runs=4),
+        Demo("terrain-ngi", "ngi", {"mode": "ii-only"}, max_runs=1),
+    )
+
+    @property
+    def data_type(self) -> type:
+        from workbench.experiments.terrain.run import TerrainData
+
+        return TerrainData
+
+    @property
+    def estimators(self) -> dict[str, Estimator]:
+        from workbench.experiments.terrain.estimators import TABLE
+
+        return TABLE
+
+    def run_once(self, cfg: TerrainConfig, run: int, estimators: list[Estimator], record: bool = False,
+                 threads: int = 1):
+        from workbench.experiments.terrain.run import run_once
+
+        return run_once(cfg, run, estimators, record, threads)
+
+    def evaluate(self, result, cfg: TerrainConfig, run: int):
+        from workbench.experiments.terrain.evaluate import summarise
+
+        return summarise(result, run)
+
+    def statistics(self, cfg: TerrainConfig, summaries: list, label: str = "") -> dict:
+        from workbench.experiments.terrain.evaluate import statistics
+
+        return statistics(cfg, summaries, label)
+
+    def table(self, stats: dict) -> str:
+        from workbench.experiments.terrain.report import table
+
+        return table(stats)
+
+    def blueprint(self, first):
+        from workbench.experiments.terrain.record import blueprint
+
+        return blueprint(list(first.estimates))
+
+    def record(self, rec, first, summaries: list, table: str) -> None:
+        from workbench.experiments.terrain.record import record
+
+        record(rec, first, summaries, table)
+
+    def check(self, estimate, data, cfg, estimator: Estimator):
+        from workbench.experiments.terrain.estimate import check
+
+        return check(estimate, data, cfg, estimator)
+
+    def label(self, first) -> str:
+        return first.scene.label
+
+    # --- the paper's grid (``--sweep DIR``), instead of the usual run
+    def _sizes(self, cfg: TerrainConfig, extras: dict) -> tuple[str, ...]:
+        from workbench.experiments.terrain import grid
+
+        return split_list(extras["sweep_sizes"]) if extras.get("sweep_sizes") else grid.SIZES
+
+    def check_extras(self, cfg: TerrainConfig, extras: dict, force: bool) -> None:
+        if extras.get("sweep") is None:
+            return
+        from workbench.recording import stream
+
+        for size in self._sizes(cfg, extras):
+            replace(cfg, size=size).validate()
+        stream.check_plain_output(Path(extras["sweep"]) / "grid.md", force, "grid table")
+        stream.check_plain_output(Path(extras["sweep"]) / "grid.csv", force, "grid CSV")
+
+    def instead(self, cfg: TerrainConfig, extras: dict, jobs: int | None, progress) -> dict | None:
+        """``sweep``: the paper's grid of image sizes, error levels and functional counts;
+        its table, CSV and plots go into that folder."""
+        if extras.get("sweep") is None:
+            return None
+        from workbench.experiments.terrain import grid
+
+        sizes = self._sizes(cfg, extras)
+        t0 = time.perf_counter()
+        total, done = cfg.runs * len(sizes), [0]
+
+        def tick(n: int) -> None:
+            done[0] += n
+            progress(done[0], total)
+
+        rows = grid.run_grid(cfg, sizes, jobs, progress=tick)
+        written = grid.write(rows, cfg, Path(extras["sweep"]))
+        text = (grid.table(rows, cfg) + f"\n\nwritten: {', '.join(str(p) for p in written)}")
+        return {"rows": rows, "written": [str(p) for p in written], "_table": text,
+                "_lines": [f"{cfg.runs} run(s) per cell in {time.perf_counter() - t0:.1f} s"]}
+
+
+EXPERIMENT = Terrain()
