@@ -34,7 +34,7 @@ from workbench.errors import WorkbenchError
 from workbench.experiments.contract import Color, Estimator, Experiment, split_list
 
 GROUP = "workbench.estimators"
-NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]*")
+NAME = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.-]*")
 # colours for plugins, far from the built-ins' palettes and from each other
 PLUGIN_COLORS: tuple[Color, ...] = ((255, 235, 60), (120, 255, 200), (255, 120, 60), (110, 140, 255),
                                     (200, 255, 90), (255, 80, 150), (150, 230, 255), (210, 160, 110))
@@ -88,7 +88,7 @@ def one(exp: Experiment, item: Any, color: Color = PLUGIN_COLORS[0]) -> Estimato
     if not isinstance(item, str):
         raise WorkbenchError(f"an estimator is a name, a module:function spec or a function, not {item!r}")
     name = None
-    m = re.fullmatch(r"([A-Za-z0-9][A-Za-z0-9_.-]*)=(.+)", item.strip())
+    m = re.fullmatch(rf"({NAME.pattern})=(.+)", item.strip())
     if m:
         name, item = m.group(1), m.group(2)
     item = item.strip()

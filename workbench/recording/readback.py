@@ -52,3 +52,19 @@ def series(path: Path, entity: str, timeline: str = "time") -> tuple[np.ndarray,
     t, v = np.concatenate(ts), np.concatenate(vs)
     order = np.argsort(t, kind="stable")
     return t[order], v[order]
+
+
+def static_values(path: Path, entity: str, component: str) -> list:
+    """A static component's values (e.g. ``SeriesLines:colors``) as logged, first chunk that has it."""
+    for chunk in RrdReader(str(path)).store().stream():
+        if str(chunk.entity_path) != entity or not chunk.is_static:
+            continue
+        batch = chunk.to_record_batch()
+        if component in batch.schema.names:
+            return batch.column(component).to_pylist()[0]
+    raise KeyError(f"no static {component!r} at {entity!r} in {path}")
+
+
+def rgb(packed: int) -> tuple[int, int, int]:
+    """A Rerun colour (0xRRGGBBAA) as ``(r, g, b)``."""
+    return (packed >> 24) & 255, (packed >> 16) & 255, (packed >> 8) & 255
