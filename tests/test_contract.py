@@ -82,7 +82,8 @@ def test_scenario_defaults_live_in_the_config():
 
 def test_the_api_and_the_cli_give_the_same_numbers(tmp_path):
     m = tmp_path / "m.json"
-    r = wb("sea", "--runs", "3", "--seed", "3", "--duration", "10", "--out", str(tmp_path / "a.rrd"), "--metrics", str(m))
+    r = wb("sea", "--runs", "3", "--seed", "3", "--duration", "10", "--out", str(tmp_path / "a.rrd"),
+           "--metrics", str(m))
     assert r.returncode == 0, r.stderr
     cli_stats = json.loads(m.read_text())
     api_stats = workbench.run("sea", runs=3, seed=3, duration=10.0).metrics
