@@ -22,7 +22,7 @@ class Omni(Experiment):
     data_type = OmniData
     estimate_type = SlamEstimate
     demo = (  # 500 s of SLAM per run with every estimator: about 12 s a run
-        Demo("omni-paper", "paper", max_runs=4),
+        Demo("omni-paper", "paper", max_runs=4, estimators="+fixed-lag"),
         Demo("omni-mrclam1", "mrclam", {"robot": 1}, max_runs=1),
         Demo("omni-mrclam2", "mrclam", {"robot": 2}, max_runs=1),
     )

@@ -19,10 +19,10 @@ class Sea(Experiment):
     data_type = SeaData
     estimate_type = Estimate
     demo = (
-        Demo("sea-paper", "paper"),
-        Demo("sea-impulse", "impulse"),
-        Demo("sea-track-loss", "track-loss"),
-        Demo("sea-ais", "ais", max_runs=5),
+        Demo("sea-paper", "paper", estimators="+fixed-lag"),
+        Demo("sea-impulse", "impulse", estimators="+fixed-lag"),
+        Demo("sea-track-loss", "track-loss", estimators="+fixed-lag"),
+        Demo("sea-ais", "ais", max_runs=5, estimators="+fixed-lag"),
     )
 
     @property
