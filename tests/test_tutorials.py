@@ -1,7 +1,9 @@
-"""The tutorials' sh blocks run in order in a scratch folder, so the tutorials stay true.
+"""The tutorials run in order in a scratch folder, so the tutorials stay true.
 
-Blocks fenced ``sh real-data`` need the real data (``WORKBENCH_DATA`` or ``../shared/data``)
-and are skipped, with the reason, where it is absent.
+* ``sh`` blocks run line by line; ``sh real-data`` blocks need the real data
+  (``WORKBENCH_DATA`` or ``../shared/data``) and are skipped, with the reason, where it is absent;
+* ``python file=NAME`` blocks are written to ``NAME`` (a file the reader saves);
+* ``python run`` blocks run as a script (what the reader types into Python or a notebook).
 """
 
 import os
@@ -15,20 +17,29 @@ import pytest
 from workbench.paths import data_root
 
 TUTORIALS = sorted((Path(__file__).resolve().parents[1] / "tutorials").glob("*.md"))
+BLOCK = re.compile(r"```(sh real-data|sh|python file=\S+|python run)\n(.*?)```", flags=re.S)
 
 
 @pytest.mark.parametrize("path", TUTORIALS, ids=lambda p: p.stem)
 def test_tutorial_runs(path, tmp_path):
-    blocks = re.findall(r"```sh( real-data)?\n(.*?)```", path.read_text(), flags=re.S)
-    assert blocks, f"{path.name} has no sh blocks"
+    blocks = BLOCK.findall(path.read_text())
+    assert any(kind.startswith("sh") for kind, _ in blocks), f"{path.name} has no sh blocks"
     env = dict(os.environ)
     env["PATH"] = str(Path(sys.executable).parent) + os.pathsep + env.get("PATH", "")
     (tmp_path / "tut").mkdir()
     skipped = []
     outputs = []
-    for real, block in blocks:
-        if real and not data_root().is_dir():
+    for kind, block in blocks:
+        if kind == "sh real-data" and not data_root().is_dir():
             skipped.append(block.strip())
+            continue
+        if kind.startswith("python file="):
+            (tmp_path / kind.split("=", 1)[1]).write_text(block)
+            continue
+        if kind == "python run":
+            r = subprocess.run([sys.executable, "-c", block], cwd=tmp_path, env=env, capture_output=True,
+                               text=True, timeout=900)
+            assert r.returncode == 0, f"{block}\n{r.stderr[-2000:]}"
             continue
         for line in block.strip().splitlines():
             r = subprocess.run(line, shell=True, cwd=tmp_path, env=env, capture_output=True,

@@ -47,7 +47,7 @@ def blueprint(names: list[str], images: bool = False) -> rrb.Blueprint:
     )
     mc = rrb.Vertical(
         rrb.TimeSeriesView(origin="/monte_carlo/position_rmse", name="position RMSE over runs (m)"),
-        rrb.TimeSeriesView(origin="/monte_carlo/nees", name="EKF NEES over runs, 95 % band"),
+        rrb.TimeSeriesView(origin="/monte_carlo/nees", name="NEES over runs (4 states), 95 % band"),
     )
     tabs = [series, errors, mc, rrb.TextDocumentView(origin="/summary", name="results")]
     left: rrb.Container | rrb.SpaceView = rrb.Spatial3DView(origin="/map", name="map (top-down, m)")
