@@ -84,12 +84,11 @@ def execute(exp, scenario: str | None, out: Path | None, force: bool, metrics: P
                       metrics=metrics, force=force, jobs=jobs, spawn=spawn, serve=serve, extras=extras,
                       progress=lambda done, total: bar.update(task, completed=done, total=total), **overrides)
     if not quiet:
-        typer.echo(res.table)
-        outputs = [f"recording: {res.recording}"] if res.recording else []
-        outputs += [f"metrics:   {res.metrics_path}"] if res.metrics_path else []
         wall = res.metrics.get("wall_seconds")
-        timing = [f"{res.config.runs} run(s) in {wall:.1f} s"] if wall is not None else []
-        typer.echo("\n" + "\n".join(outputs + res.lines + timing))
+        lines = ([f"recording: {res.recording}"] if res.recording else []) + (
+            [f"metrics:   {res.metrics_path}"] if res.metrics_path else []) + res.lines + (
+            [f"{res.config.runs} run(s) in {wall:.1f} s"] if wall is not None else [])
+        typer.echo(res.table + "\n\n" + "\n".join(lines))
     for name, why in res.failures.items():
         typer.echo(f"error: estimator {name!r} failed: {why}", err=True)
     if res.failures:
@@ -98,24 +97,14 @@ def execute(exp, scenario: str | None, out: Path | None, force: bool, metrics: P
 
 
 def _option(opt, exp) -> inspect.Parameter:
-    from workbench.experiments.contract import default_text
-
-    default = "" if "[" in opt.help or opt.field not in _fields(exp) else default_text(
-        exp.config_type, exp.scenarios, opt.fields[0])
-    help_text = opt.help + (f" {default}" if default else "")
+    help_text = _escape(opt.described(exp.config_type, exp.scenarios))
     return inspect.Parameter(opt.field, inspect.Parameter.KEYWORD_ONLY, annotation=opt.type | None,
-                             default=typer.Option(None, *opt.flags, help=_escape(help_text)))
+                             default=typer.Option(None, *opt.flags, help=help_text))
 
 
 def _escape(text: str) -> str:
     """Brackets as text, not rich markup (which would swallow ``[recordings/sea.rrd]``)."""
     return text.replace("[", "\\[")
-
-
-def _fields(exp) -> set[str]:
-    import dataclasses
-
-    return {f.name for f in dataclasses.fields(exp.config_type)}
 
 
 def _shared(exp) -> list[inspect.Parameter]:
@@ -192,7 +181,8 @@ def demo(force: bool = typer.Option(False, help="Overwrite existing recordings."
                 continue
             written.append(res.recording)
             typer.echo(f"{step.name:16s} -> {res.recording}  ({res.metrics['wall_seconds']:.1f} s, {n} run(s))")
-    typer.echo(f"\nrecordings in {RECORDINGS}; open one with: workbench view {written[0]}")
+    if written:
+        typer.echo(f"\nrecordings in {RECORDINGS}; open one with: workbench view {written[0]}")
 
 
 @app.command()
@@ -213,11 +203,3 @@ def view(
         return
     typer.echo(f"serving the web viewer at http://localhost:{port} (Ctrl-C to stop)")
     subprocess.run([exe, "--web-viewer", "--web-viewer-port", str(port), str(file)], check=False)
-
-
-def main() -> None:
-    app()
-
-
-if __name__ == "__main__":
-    main()

@@ -136,6 +136,12 @@ class Option:
             return (self.switch,)
         return (self.flag or "--" + self.field.replace("_", "-"),)
 
+    def described(self, config_type: type, scenarios: Mapping[str, Scenario]) -> str:
+        """The help text with the default appended (``[3; ais 20]``), where the help gives none."""
+        if "[" in self.help or self.fields[0] not in {f.name for f in dataclasses.fields(config_type)}:
+            return self.help
+        return f"{self.help} {default_text(config_type, scenarios, self.fields[0])}".strip()
+
     def value(self, given: Any) -> Any:
         """The config value of what the command line parsed (a one-line error if ``parse`` fails)."""
         if given is None or self.parse is None:
@@ -192,10 +198,11 @@ class RunContext:
 class Estimator:
     """One row of an estimator table.
 
-    ``run(data, cfg, ctx)`` for built-ins; a plugin's function is ``(data, cfg)`` or, if it
-    takes a third argument, ``(data, cfg, ctx)``. ``ref`` finds it again in another process
-    (its name, or its ``module:function`` / ``file.py:function`` spec); ``source`` says where
-    it came from (``built-in``, an entry point, a spec, a Python object)."""
+    ``run`` is ``(data, cfg)`` or, if it takes a third argument, ``(data, cfg, ctx)``; a
+    ``"module:function"`` string is imported when first run (a built-in's row costs no
+    import). ``ref`` finds it again in another process (its name, or its ``module:function`` /
+    ``file.py:function`` spec); ``source`` says where it came from (``built-in``, an entry
+    point, a spec, a Python object)."""
 
     name: str
     run: Callable[..., Any]
@@ -212,15 +219,24 @@ class Estimator:
     def builtin(self) -> bool:
         return self.source == "built-in"
 
+    def function(self) -> Callable[..., Any]:
+        """The runner; a ``"module:function"`` string is imported when first needed."""
+        if isinstance(self.run, str):
+            from workbench.experiments.plugins import load
+
+            self.run = load(self.run)
+        return self.run
+
     @property
     def takes_context(self) -> bool:
         try:
-            return len(inspect.signature(self.run).parameters) >= 3
+            return len(inspect.signature(self.function()).parameters) >= 3
         except (TypeError, ValueError):
             return False
 
     def __call__(self, data: Any, cfg: Any, ctx: RunContext) -> Any:
-        return self.run(data, cfg, ctx) if self.takes_context else self.run(data, cfg)
+        fn = self.function()
+        return fn(data, cfg, ctx) if self.takes_context else fn(data, cfg)
 
     def __reduce__(self):
         # sent to a worker process as how to find it, not as its code (a file-loaded plugin

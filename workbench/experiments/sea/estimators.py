@@ -1,8 +1,9 @@
 """The sea experiment's estimator table: name -> how to run it, colour, what it is.
 
-Each runner is ``(data, cfg, ctx) -> Estimate`` and imports its module when first run, so the
-table costs nothing to read. Adding a built-in is one module and one row here; a researcher's
-own goes beside these without touching the package (:mod:`workbench.experiments.plugins`).
+Each runner is ``(data, cfg[, ctx]) -> Estimate`` and imports its module when first run, so the
+table costs nothing to read. Adding a built-in is one module with such a function and one row
+here naming it as ``"module:function"`` (as ``ekf``); a researcher's own goes beside these
+without touching the package (:mod:`workbench.experiments.plugins`).
 """
 
 from __future__ import annotations
@@ -29,12 +30,6 @@ def window_rls(data: SeaData, cfg: SeaConfig, ctx: RunContext) -> Estimate:
     from workbench.experiments.sea import ar_filter
 
     return ar_filter.estimate(data, cfg, windowed=True)
-
-
-def ekf(data: SeaData, cfg: SeaConfig, ctx: RunContext) -> Estimate:
-    from workbench.experiments.sea import ekf
-
-    return ekf.estimate(data, cfg)
 
 
 def factors(data: SeaData, cfg: SeaConfig, ctx: RunContext):
@@ -64,8 +59,8 @@ TABLE: dict[str, Estimator] = table(
               causal=True, covariances=False),
     Estimator("window-rls", window_rls, (0, 210, 200), "algorithm 3: sliding-window diffuse RLS on the AR models",
               causal=True, covariances=False),
-    Estimator("ekf", ekf, (230, 70, 70), "EKF on a constant-velocity target (the paper's reference [8])",
-              causal=True, covariances=True),
+    Estimator("ekf", "workbench.experiments.sea.ekf:estimate", (230, 70, 70),
+              "EKF on a constant-velocity target (the paper's reference [8])", causal=True, covariances=True),
     Estimator("gtsam", gtsam_batch, (190, 90, 240), "GTSAM LM smoother over the whole run (uses the future)",
               causal=False, covariances=True),
     Estimator("isam2", isam2, (255, 110, 200), "GTSAM iSAM2, the newest step at each step (causal)",
