@@ -4,13 +4,32 @@ Python API and the sweeps reach an experiment only through its :class:`Experimen
 An experiment declares its scenarios (each a set of defaults), its command-line options (each
 one config field), and its **estimator table**: name -> :class:`Estimator` (how to run it on a
 dataset, its colour, a line of description, whether it is causal and whether it gives
-covariances). A run flows one way: ``configure -> data -> estimate -> evaluate -> record``:
+covariances). A run flows one way: ``configure -> data -> estimate -> evaluate -> record``.
 
-* ``configure(scenario, **overrides)``: the config, the scenario's defaults under what was given;
-* ``run_once(cfg, run, estimators, record)``: run k's dataset and every estimator on it;
-* ``evaluate(result, cfg, run)``: the run's errors and summary (small, picklable);
-* ``statistics(cfg, summaries)``, ``table(stats)``: over runs, the metrics dict and its table;
-* ``blueprint(first)``, ``record(rec, first, summaries, table)``: the recording of run 0.
+An experiment is a package ``workbench/experiments/<name>/`` with one module per role, which
+:class:`Experiment` calls by name (:meth:`Experiment.role`), and one line in the registry
+(:mod:`workbench.experiments`):
+
+=================  ==========================================================================
+``config.py``      the config dataclass (fields ``scenario``, ``seed``, ``runs``,
+                   ``estimators``; ``validate()``, ``to_json()``; scenario-dependent fields
+                   declared with :func:`by_scenario`, filled by :func:`apply_scenario` in
+                   ``__post_init__``), ``SCENARIOS`` (name -> :class:`Scenario`), ``OPTIONS``
+``scenario.py``    the public dataset type (what an estimator reads; truth for evaluation only)
+``estimate.py``    the public estimate type, and ``check(estimate, data, cfg, estimator)``
+``estimators.py``  ``TABLE``: the built-in estimators (:func:`table`)
+``run.py``         ``run_once(cfg, run, estimators, record, threads)``: run k's dataset and
+                   every estimator on it (:func:`estimate_all`), a result with ``data``,
+                   ``estimates``, ``estimators``, ``failed``
+``evaluate.py``    ``summarise(result, cfg, run)``: a run's errors and summary (picklable,
+                   with ``run`` and ``failed``); ``statistics(cfg, summaries, label)``
+``report.py``      ``table(stats)``: the results table (markdown)
+``record.py``      ``layout(first)``: the default blueprint; ``record(rec, first, summaries,
+                   table)``: run 0 drawn from ``first`` and its evaluation ``summaries[0]``
+``experiment.py``  ``EXPERIMENT``: an :class:`Experiment` subclass declaring the above (name,
+                   description, config type, scenarios, options, data and estimate types,
+                   demo steps) and any hooks for extra options (exports, an alternative run)
+=================  ==========================================================================
 
 An estimator is a function ``(data, cfg) -> Estimate`` of the experiment's public dataset and
 estimate types (``(data, cfg, ctx)`` where it wants the :class:`RunContext`); a researcher's own
@@ -20,6 +39,7 @@ estimator is the same kind of function, and goes everywhere a built-in goes.
 from __future__ import annotations
 
 import dataclasses
+import importlib
 import inspect
 import os
 import time
@@ -359,8 +379,9 @@ def psd(cov: np.ndarray, what: str, rows: np.ndarray | None = None, estimator: E
 class Experiment:
     """The base every experiment fills; the one object the CLI, demo, API and sweeps use.
 
-    Subclasses set the class attributes and implement the flow's methods; the base gives the
-    configuration, the estimator selection and the failure bookkeeping, the same for all.
+    Subclasses set the class attributes (in their package's ``experiment.py``); the flow's
+    methods go to the package's role modules by name (:meth:`role`), and the base gives the
+    configuration and the estimator selection, the same for all.
     """
 
     name: str = ""
@@ -374,10 +395,17 @@ class Experiment:
     data_type: type = object           # the public dataset an estimator reads
     estimate_type: type = object       # the public estimate an estimator returns
 
-    # the built-in estimator table, name -> Estimator (in the order they run)
+    def role(self, name: str) -> Any:
+        """The experiment package's module for a role (``estimators``, ``run``, ``evaluate``,
+        ``report``, ``record``, ``estimate``), imported when first needed: the methods below
+        call them by these names, so an experiment's ``experiment.py`` only declares."""
+        package = type(self).__module__.rpartition(".")[0]
+        return importlib.import_module(f"{package}.{name}")
+
     @property
     def estimators(self) -> dict[str, Estimator]:
-        raise NotImplementedError
+        """The built-in estimator table, name -> :class:`Estimator`, in the order they run."""
+        return self.role("estimators").TABLE
 
     @property
     def default_estimators(self) -> tuple[str, ...]:
@@ -412,33 +440,39 @@ class Experiment:
         checked and timed: the estimates by name and the failures."""
         return estimate_all(self.select(estimators), data, cfg, RunContext(record=record), self.check)
 
-    # --- the flow (each experiment implements these)
+    # --- the flow, by the package's role modules
     def run_once(self, cfg: Any, run: int, estimators: list[Estimator], record: bool = False,
                  threads: int = 1) -> Any:
-        raise NotImplementedError
+        """Run ``run``'s dataset and every estimator on it (``run.run_once``)."""
+        return self.role("run").run_once(cfg, run, estimators, record, threads)
 
     def evaluate(self, result: Any, cfg: Any, run: int) -> Any:
-        raise NotImplementedError
+        """A run's errors and summary (``evaluate.summarise``), small enough to send back."""
+        return self.role("evaluate").summarise(result, cfg, run)
 
-    def statistics(self, cfg: Any, summaries: list[Any]) -> dict:
-        raise NotImplementedError
+    def statistics(self, cfg: Any, summaries: list[Any], label: str = "") -> dict:
+        """The metrics over runs (``evaluate.statistics``)."""
+        return self.role("evaluate").statistics(cfg, summaries, label)
 
     def table(self, stats: dict) -> str:
-        raise NotImplementedError
+        """The results table, markdown (``report.table``)."""
+        return self.role("report").table(stats)
 
     def blueprint(self, first: Any) -> Any:
-        raise NotImplementedError
+        """The recording's default layout for run 0 (``record.layout``)."""
+        return self.role("record").layout(first)
 
     def record(self, rec: Any, first: Any, summaries: list[Any], table: str) -> None:
-        raise NotImplementedError
+        """Draw run 0 and the curves over runs (``record.record``)."""
+        self.role("record").record(rec, first, summaries, table)
 
     def check(self, estimate: Any, data: Any, cfg: Any, estimator: Estimator) -> Any:
         """The estimate, checked against the public type (and completed where it may leave
-        derived fields out); :class:`EstimateError` otherwise."""
-        return estimate
+        derived fields out); :class:`EstimateError` otherwise (``estimate.check``)."""
+        return self.role("estimate").check(estimate, data, cfg, estimator)
 
     def label(self, first: Any) -> str:
-        return ""
+        return first.data.label
 
     # --- optional hooks for an experiment's extra options (exports, an alternative run)
     def check_extras(self, cfg: Any, extras: dict, force: bool) -> None:

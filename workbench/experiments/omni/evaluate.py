@@ -68,7 +68,7 @@ class RunSummary:
     failed: dict[str, str] = field(default_factory=dict)  # estimators that failed: one line each
 
 
-def summarise(result: RunResult, run: int) -> RunSummary:
+def summarise(result: RunResult, cfg: OmniConfig, run: int) -> RunSummary:
     """Errors, own sigmas and NEES on the grid; the final map's errors; initialisation delays."""
     data, grid = result.data, result.grid
     truth = data.truth[grid]

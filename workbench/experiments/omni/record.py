@@ -66,6 +66,17 @@ def blueprint(names: list[str], centre: tuple[float, float] = (40.0, 40.0), heig
     )
 
 
+def layout(first: RunResult) -> rrb.Blueprint:
+    """The default layout: maps framed on the walls (the simulation) or the landmarks (MRCLAM)."""
+    d = first.data
+    if d.walls is not None:
+        centre, height = tuple(d.walls.mean(axis=0)), 1.4 * float(d.walls.max() - d.walls.min())
+    else:
+        lo, hi = np.nanmin(d.landmarks, axis=0), np.nanmax(d.landmarks, axis=0)
+        centre, height = tuple((lo + hi) / 2), 1.6 * float(max(hi - lo))
+    return blueprint(list(first.estimates), centre, height, first.images is not None)
+
+
 def _rays(first: RunResult, pose: np.ndarray, length: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Bearing rays drawn from an estimate's pose at each epoch: times, counts, starts, ends."""
     d = first.data

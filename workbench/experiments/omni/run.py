@@ -53,7 +53,8 @@ def make_data(cfg: OmniConfig, run: int, record: bool = False) -> tuple[OmniData
     return data, stage
 
 
-def run_once(cfg: OmniConfig, run: int, estimators: list[Estimator], record: bool = False) -> RunResult:
+def run_once(cfg: OmniConfig, run: int, estimators: list[Estimator], record: bool = False,
+             threads: int = 1) -> RunResult:
     """One run; ``record`` keeps what the recording draws (initialisation attempts, the
     graph's map through time)."""
     data, stage = make_data(cfg, run, record)

@@ -68,6 +68,11 @@ def blueprint(names: list[str], images: bool = False) -> rrb.Blueprint:
     )
 
 
+def layout(first: RunResult) -> rrb.Blueprint:
+    """The default layout of a run's recording."""
+    return blueprint(list(first.estimates), images=first.images is not None)
+
+
 def record(rec: rr.RecordingStream, first: RunResult, runs: list[RunSummary], table_md: str) -> None:
     """Log run 0 in full (``runs[0]`` is its evaluation), the Monte Carlo curves over all
     runs, and the results table."""

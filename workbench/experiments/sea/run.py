@@ -43,7 +43,8 @@ def make_data(cfg: SeaConfig, run: int) -> SeaData:
     return simulate(cfg, rng)
 
 
-def run_once(cfg: SeaConfig, run: int, estimators: list[Estimator], record: bool = False) -> RunResult:
+def run_once(cfg: SeaConfig, run: int, estimators: list[Estimator], record: bool = False,
+             threads: int = 1) -> RunResult:
     """One run: every estimator on the same data, each estimate checked (:func:`.estimate.check`).
     ``record``: the recorded run (covariances from the smoothers, the frames kept)."""
     data = make_data(cfg, run)

@@ -48,7 +48,7 @@ class RunSummary:
     ground_maps: dict[str, np.ndarray] = field(default_factory=dict)  # the recorded run's error maps
 
 
-def summarise(res: RunResult, run: int) -> RunSummary:
+def summarise(res: RunResult, cfg: TerrainConfig, run: int) -> RunSummary:
     """Image II's position and attitude errors, ground RMSE, NEES, whether the search's winner
     is the true cell; the error maps themselves for the recorded run."""
     sc = res.scene

@@ -1,5 +1,6 @@
 """The terrain experiment (paper 001) as the workbench sees it: the one object the CLI, the
-demo, the Python API and the sweeps use."""
+demo, the Python API and the sweeps use. The flow goes to this package's role modules by
+name; here are its declarations and the paper's grid (``--sweep``)."""
 
 from __future__ import annotations
 
@@ -7,9 +8,10 @@ import time
 from dataclasses import replace
 from pathlib import Path
 
-from workbench.experiments.contract import Demo, Estimator, Experiment, split_list
+from workbench.experiments.contract import Demo, Experiment, split_list
 from workbench.experiments.terrain.config import EXTRAS, OPTIONS, SCENARIOS, TerrainConfig
 from workbench.experiments.terrain.estimate import Estimate
+from workbench.experiments.terrain.scenario import TerrainData
 
 
 class Terrain(Experiment):
@@ -21,63 +23,13 @@ class Terrain(Experiment):
     options = OPTIONS
     extras = EXTRAS
     required = ("navigation",)
+    data_type = TerrainData
     estimate_type = Estimate
     demo = (  # about 9 s a run
         Demo("terrain-common", "synthetic", {"mode": "common"}, max_runs=4),
         Demo("terrain-ii-only", "synthetic", {"mode": "ii-only"}, max_runs=4),
         Demo("terrain-ngi", "ngi", {"mode": "ii-only"}, max_runs=1),
     )
-
-    @property
-    def data_type(self) -> type:
-        from workbench.experiments.terrain.run import TerrainData
-
-        return TerrainData
-
-    @property
-    def estimators(self) -> dict[str, Estimator]:
-        from workbench.experiments.terrain.estimators import TABLE
-
-        return TABLE
-
-    def run_once(self, cfg: TerrainConfig, run: int, estimators: list[Estimator], record: bool = False,
-                 threads: int = 1):
-        from workbench.experiments.terrain.run import run_once
-
-        return run_once(cfg, run, estimators, record, threads)
-
-    def evaluate(self, result, cfg: TerrainConfig, run: int):
-        from workbench.experiments.terrain.evaluate import summarise
-
-        return summarise(result, run)
-
-    def statistics(self, cfg: TerrainConfig, summaries: list, label: str = "") -> dict:
-        from workbench.experiments.terrain.evaluate import statistics
-
-        return statistics(cfg, summaries, label)
-
-    def table(self, stats: dict) -> str:
-        from workbench.experiments.terrain.report import table
-
-        return table(stats)
-
-    def blueprint(self, first):
-        from workbench.experiments.terrain.record import blueprint
-
-        return blueprint(list(first.estimates))
-
-    def record(self, rec, first, summaries: list, table: str) -> None:
-        from workbench.experiments.terrain.record import record
-
-        record(rec, first, summaries, table)
-
-    def check(self, estimate, data, cfg, estimator: Estimator):
-        from workbench.experiments.terrain.estimate import check
-
-        return check(estimate, data, cfg, estimator)
-
-    def label(self, first) -> str:
-        return first.scene.label
 
     # --- the paper's grid (``--sweep DIR``), instead of the usual run
     def _sizes(self, cfg: TerrainConfig, extras: dict) -> tuple[str, ...]:

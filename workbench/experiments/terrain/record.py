@@ -493,6 +493,11 @@ def narrow_tables(markdown: str, columns: int = 5) -> str:
     return "\n".join(out)
 
 
+def layout(first: RunResult) -> rrb.Blueprint:
+    """The default layout of a run's recording."""
+    return blueprint(list(first.estimates))
+
+
 def record(rec: rr.RecordingStream, first: RunResult, runs: list[RunSummary], table_md: str) -> None:
     """Log run 0 (``runs[0]`` is its evaluation): scene, cameras, the search, the baseline's
     tie points, the halftone models and their ground error maps."""

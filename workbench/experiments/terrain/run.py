@@ -15,36 +15,7 @@ from workbench.experiments.contract import Estimator, RunContext, estimate_all
 from workbench.experiments.terrain import navigation
 from workbench.experiments.terrain.config import TerrainConfig
 from workbench.experiments.terrain.estimate import Estimate, check
-from workbench.experiments.terrain.scenario import Scene, synthetic_scene
-
-
-@dataclass
-class TerrainData:
-    """One run's dataset: the dataset every terrain estimator reads.
-
-    ``scene``: the stereo pair (``images (2, H, W)`` irradiance in [0, 1], intrinsics ``k``,
-    the ``dem``, the exposures' ``interval`` s; ``scene.position`` / ``scene.angles`` are the
-    true orientation, for evaluation). ``measured``: the navigation system's orientation of
-    both exposures, the estimators' start. ``state``: the true navigation error state (for
-    evaluation), in the error mode ``mode`` (:data:`navigation.STATE`). ``hypothesis_rng()``:
-    the run's generator where the scene and the errors left it (the sampled hypotheses draw
-    from it).
-    """
-
-    scene: Scene
-    measured: Estimate
-    state: np.ndarray
-    mode: str
-    rng_state: dict
-
-    @property
-    def label(self) -> str:
-        return self.scene.label
-
-    def hypothesis_rng(self) -> np.random.Generator:
-        rng = np.random.default_rng()
-        rng.bit_generator.state = self.rng_state
-        return rng
+from workbench.experiments.terrain.scenario import Scene, TerrainData, synthetic_scene
 
 
 @dataclass

@@ -13,6 +13,7 @@ from workbench.experiments.terrain import camera
 from workbench.experiments.terrain.camera import Intrinsics
 from workbench.experiments.terrain.config import TerrainConfig
 from workbench.experiments.terrain.dem import Dem, _band_noise, synthetic
+from workbench.experiments.terrain.estimate import Estimate
 
 SUN = np.array([-0.5, 0.5, 0.7071])  # from the north-west, 45 deg up
 
@@ -102,3 +103,32 @@ def synthetic_scene(cfg: TerrainConfig, rng: np.random.Generator) -> Scene:
                        for i in range(2)])
     label = f"synthetic {k.width}x{k.height}, {foot_x / k.width:.1f} x {foot_y / k.height:.1f} m pixels"
     return Scene(label, dem, k, position, angles, images, cfg.interval, albedo)
+
+
+@dataclass
+class TerrainData:
+    """One run's dataset: the dataset every terrain estimator reads.
+
+    ``scene``: the stereo pair (``images (2, H, W)`` irradiance in [0, 1], intrinsics ``k``,
+    the ``dem``, the exposures' ``interval`` s; ``scene.position`` / ``scene.angles`` are the
+    true orientation, for evaluation). ``measured``: the navigation system's orientation of
+    both exposures, the estimators' start. ``state``: the true navigation error state (for
+    evaluation), in the error mode ``mode`` (:data:`navigation.STATE`). ``hypothesis_rng()``:
+    the run's generator where the scene and the errors left it (the sampled hypotheses draw
+    from it).
+    """
+
+    scene: Scene
+    measured: Estimate
+    state: np.ndarray
+    mode: str
+    rng_state: dict
+
+    @property
+    def label(self) -> str:
+        return self.scene.label
+
+    def hypothesis_rng(self) -> np.random.Generator:
+        rng = np.random.default_rng()
+        rng.bit_generator.state = self.rng_state
+        return rng
