@@ -9,16 +9,12 @@ from __future__ import annotations
 import numpy as np
 import rerun as rr
 
-PALETTE = {
-    "truth": (230, 230, 230), "observer": (80, 160, 255), "geometric": (255, 170, 0),
-    "rls": (60, 200, 90), "window-rls": (0, 210, 200), "ekf": (230, 70, 70),
-    "gtsam": (190, 90, 240), "isam2": (255, 110, 200), "measured": (140, 140, 140),
-    "odometry": (150, 150, 150), "ekf-paper": (255, 170, 0), "gtsam-batch": (190, 90, 240),
-}
+PALETTE = {"truth": (230, 230, 230), "observer": (80, 160, 255), "measured": (140, 140, 140)}
+"""Colours of what is not an estimator; each estimator's colour is its row of the estimator table."""
 
 
 def color(name: str) -> tuple[int, int, int]:
-    return PALETTE.get(name, (200, 200, 200))
+    return PALETTE[name]
 
 
 def times(timeline: str, seconds: np.ndarray) -> rr.TimeColumn:
