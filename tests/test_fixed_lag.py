@@ -64,7 +64,7 @@ def test_sea_fixed_lag_between_the_filter_and_the_smoother():
 
 def _omni(duration: float = 120.0, seed: int = 0, **kw):
     cfg = OmniConfig(duration=duration, **kw).validate()
-    data, _ = omni_run.make_data(cfg, seed)
+    data = omni_run.make_data(cfg, seed)
     return cfg, data, graph.keyframes(data, cfg)
 
 

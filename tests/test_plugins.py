@@ -215,3 +215,17 @@ def test_installed_entry_points_are_found():
         assert "fixed-lag" in plugins.installed(experiment)
         est = get(experiment).select(["fixed-lag"])[0]
         assert est.source.startswith(f"entry point {experiment}.fixed-lag") and est.causal and est.covariances
+
+
+def test_a_dataset_and_estimators_by_hand():
+    """The contract's pieces for a notebook: run k's dataset (the same for the same seed) and
+    the chosen estimators on it, checked and timed."""
+    exp = workbench.experiment("omni")
+    cfg = workbench.configure("omni", duration=20.0)
+    data = exp.dataset(cfg, 3)
+    again, other = exp.dataset(cfg, 3), exp.dataset(cfg, 4)
+    assert np.array_equal(data.controls, again.controls) and np.array_equal(data.meas_bearing, again.meas_bearing)
+    assert not np.array_equal(data.controls, other.controls)
+    est, failed = exp.estimate(data, cfg, ["odometry", "ekf"])
+    assert not failed and list(est) == ["odometry", "ekf"] and len(est["ekf"].steps) == len(data.t)
+    assert all(e.seconds > 0 for e in est.values())

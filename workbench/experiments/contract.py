@@ -18,9 +18,10 @@ An experiment is a package ``workbench/experiments/<name>/`` with one module per
 ``scenario.py``    the public dataset type (what an estimator reads; truth for evaluation only)
 ``estimate.py``    the public estimate type, and ``check(estimate, data, cfg, estimator)``
 ``estimators.py``  ``TABLE``: the built-in estimators (:func:`table`)
-``run.py``         ``run_once(cfg, run, estimators, record, threads)``: run k's dataset and
-                   every estimator on it (:func:`estimate_all`), a result with ``data``,
-                   ``estimates``, ``estimators``, ``failed``
+``run.py``         ``make_data(cfg, run)``: run k's dataset; ``run_once(cfg, run, estimators,
+                   record, threads)``: that dataset and every estimator on it
+                   (:func:`estimate_all`), a result with ``data``, ``estimates``,
+                   ``estimators``, ``failed``
 ``evaluate.py``    ``summarise(result, cfg, run)``: a run's errors and summary (picklable,
                    with ``run`` and ``failed``); ``statistics(cfg, summaries, label)``
 ``report.py``      ``table(stats)``: the results table (markdown)
@@ -441,6 +442,10 @@ class Experiment:
         return estimate_all(self.select(estimators), data, cfg, RunContext(record=record), self.check)
 
     # --- the flow, by the package's role modules
+    def dataset(self, cfg: Any, run: int) -> Any:
+        """Run ``run``'s dataset, made or loaded, seeded by ``(cfg.seed, run)`` (``run.make_data``)."""
+        return self.role("run").make_data(cfg, run)
+
     def run_once(self, cfg: Any, run: int, estimators: list[Estimator], record: bool = False,
                  threads: int = 1) -> Any:
         """Run ``run``'s dataset and every estimator on it (``run.run_once``)."""

@@ -33,8 +33,13 @@ class RunResult:
         return self.data.grid
 
 
-def make_data(cfg: OmniConfig, run: int, record: bool = False) -> tuple[OmniData, object | None]:
-    """The run's dataset (and the image stage, if any), its grid set."""
+def make_data(cfg: OmniConfig, run: int) -> OmniData:
+    """The run's dataset, its grid set (with ``from_images``, the image stage's bearings)."""
+    return with_stage(cfg, run)[0]
+
+
+def with_stage(cfg: OmniConfig, run: int, record: bool = False) -> tuple[OmniData, object | None]:
+    """The run's dataset and the image stage, if any (``record``: it keeps a frame a second)."""
     stage = None
     if cfg.scenario == "mrclam":
         from workbench.experiments.omni import real
@@ -57,6 +62,6 @@ def run_once(cfg: OmniConfig, run: int, estimators: list[Estimator], record: boo
              threads: int = 1) -> RunResult:
     """One run; ``record`` keeps what the recording draws (initialisation attempts, the
     graph's map through time)."""
-    data, stage = make_data(cfg, run, record)
+    data, stage = with_stage(cfg, run, record)
     est, failed = estimate_all(estimators, data, cfg, RunContext(run, record), check)
     return RunResult(data, est, {e.name: e for e in estimators}, failed, stage)
