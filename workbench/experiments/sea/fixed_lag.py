@@ -56,22 +56,11 @@ def run(data: SeaData, cfg: SeaConfig, lag: float = LAG, factors: smoother.Facto
         cov[j] = state_cov[j][:2, :2]
 
     for k in range(T):
-        graph, values = gtsam.NonlinearFactorGraph(), gtsam.Values()
-        if first is None:
-            if not data.seen[k]:
-                continue
-            for f in smoother._priors(cfg, k):
-                graph.add(f)
-            values.insert(P(k), smoother._point(pos0[k]))
-            values.insert(V(k), np.zeros(3))
-            first = k
-        else:
-            graph.add(factors.moves[k - 1])
-            values.insert(P(k), p + dt * v)
-            values.insert(V(k), v)
-        if factors.camera[k] is not None:
-            graph.add(factors.camera[k])
-        fls.update(graph, values, {P(k): k * dt, V(k): k * dt})
+        new = smoother.step(data, cfg, factors, k, first is not None, pos0, p, v)
+        if new is None:
+            continue
+        first = k if first is None else first
+        fls.update(*new, {P(k): k * dt, V(k): k * dt})
         p, v = fls.calculateEstimatePoint3(P(k)), fls.calculateEstimatePoint3(V(k))
         if k - n >= first:
             read(k - n)

@@ -223,6 +223,28 @@ def isam2_params() -> gtsam.ISAM2Params:
     return params
 
 
+def step(data: SeaData, cfg: SeaConfig, factors: FactorSet, k: int, started: bool, start: np.ndarray,
+         p: np.ndarray | None, v: np.ndarray | None) -> tuple[gtsam.NonlinearFactorGraph, gtsam.Values] | None:
+    """Step k's new factors and values for an online smoother: at the first seen step the
+    priors and the geometric ``start`` (None before it); after it, the motion factor and the
+    prediction from the last estimate ``p, v``; and the camera factor where seen."""
+    graph, values = gtsam.NonlinearFactorGraph(), gtsam.Values()
+    if not started:
+        if not data.seen[k]:
+            return None
+        for f in _priors(cfg, k):
+            graph.add(f)
+        values.insert(P(k), _point(start[k]))
+        values.insert(V(k), np.zeros(3))
+    else:
+        graph.add(factors.moves[k - 1])
+        values.insert(P(k), p + data.dt * v)
+        values.insert(V(k), v)
+    if factors.camera[k] is not None:
+        graph.add(factors.camera[k])
+    return graph, values
+
+
 def incremental(data: SeaData, cfg: SeaConfig, covariances: bool = False,
                 factors: FactorSet | None = None) -> Estimate:
     """iSAM2, one step per update; the newest step's estimate is recorded (causal)."""
@@ -237,23 +259,11 @@ def incremental(data: SeaData, cfg: SeaConfig, covariances: bool = False,
     p = v = None
     started = False
     for k in range(T):
-        graph = gtsam.NonlinearFactorGraph()
-        values = gtsam.Values()
-        if not started:
-            if not data.seen[k]:
-                continue
-            for f in _priors(cfg, k):
-                graph.add(f)
-            values.insert(P(k), _point(pos0[k]))
-            values.insert(V(k), np.zeros(3))
-            started = True
-        else:
-            graph.add(factors.moves[k - 1])
-            values.insert(P(k), p + dt * v)
-            values.insert(V(k), v)
-        if factors.camera[k] is not None:
-            graph.add(factors.camera[k])
-        isam.update(graph, values)
+        new = step(data, cfg, factors, k, started, pos0, p, v)
+        if new is None:
+            continue
+        started = True
+        isam.update(*new)
         p = isam.calculateEstimatePoint3(P(k))
         v = isam.calculateEstimatePoint3(V(k))
         X[k], Vel[k] = p[:2], v[:2]
