@@ -112,6 +112,9 @@ def test_sea_offset_is_its_rmse_everywhere(tmp_path, plugin):
     ours = readback.rgb(readback.static_values(out, "/errors/x/sea_offset", "SeriesLines:colors")[0])
     builtin = readback.rgb(readback.static_values(out, "/errors/x/geometric", "SeriesLines:colors")[0])
     assert ours == tuple(table["color"]) and ours != builtin
+    widths = [readback.static_values(out, f"/errors/x/{n}", "SeriesLines:widths")[0]
+              for n in ("sea_offset", "geometric")]
+    assert widths[0] > widths[1]  # the researcher's own estimator drawn wider than the built-ins
     t, curve = readback.series(out, "/monte_carlo/position_rmse/sea_offset")
     assert np.allclose(curve, 5.0)
     assert json.loads(readback.properties(out)["config"])["estimators"][1].startswith("sea_offset=")

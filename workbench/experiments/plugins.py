@@ -35,9 +35,11 @@ from workbench.experiments.contract import Color, Estimator, Experiment, split_l
 
 GROUP = "workbench.estimators"
 NAME = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.-]*")
-# colours for plugins, far from the built-ins' palettes and from each other
-PLUGIN_COLORS: tuple[Color, ...] = ((255, 235, 60), (120, 255, 200), (255, 120, 60), (110, 140, 255),
-                                    (200, 255, 90), (255, 80, 150), (150, 230, 255), (210, 160, 110))
+# colours for plugins: saturated, apart from every built-in's (oranges, greens, teals, reds,
+# purples, pinks, greys), from the truth's light grey and the line of sight's pale yellow, and
+# readable on the viewer's light and dark backgrounds
+PLUGIN_COLORS: tuple[Color, ...] = ((0, 100, 255), (150, 220, 0), (165, 95, 35), (255, 0, 255),
+                                    (0, 150, 110), (120, 60, 200), (255, 200, 0), (0, 190, 255))
 
 
 def estimator(*, name: str | None = None, description: str | None = None, causal: bool = False,

@@ -17,6 +17,12 @@ def color(name: str) -> tuple[int, int, int]:
     return PALETTE[name]
 
 
+def emphasis(estimator) -> float:
+    """How much wider a line (larger a marker) an estimator gets: a researcher's own plugin,
+    what they came to look at, is drawn 1.8 times as wide as the built-ins it sits among."""
+    return 1.0 if estimator.builtin else 1.8
+
+
 def times(timeline: str, seconds: np.ndarray) -> rr.TimeColumn:
     return rr.TimeColumn(timeline, duration=np.asarray(seconds, float))
 

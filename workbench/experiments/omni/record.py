@@ -131,10 +131,10 @@ def record(rec: rr.RecordingStream, first: RunResult, runs: list[RunSummary], ta
     ray_len = float(min(d.max_range, 30.0)) if np.isfinite(d.max_range) else 10.0
     band1 = metrics.chi2_band(3, 1)
     for name, est in first.estimates.items():
-        rgb = first.estimators[name].color
-        base = f"/map/{name}"
+        rgb, x = first.estimators[name].color, draw.emphasis(first.estimators[name])
+        base, w = f"/map/{name}", 1.5 * x
         pose, cov = on_grid(est, grid)
-        draw.track(rec, f"{base}/path", pose[:, :2], rgb, 0.08)
+        draw.track(rec, f"{base}/path", pose[:, :2], rgb, 0.08 * x)
         draw.poses(rec, f"{base}/vehicle", TL, t, pose, rgb)
         draw.covariance_ellipses(rec, f"{base}/pose_ellipse", TL, t, pose[:, :2], cov[:, :2, :2], rgb)
         if len(est.map_steps):
@@ -149,11 +149,11 @@ def record(rec: rr.RecordingStream, first: RunResult, runs: list[RunSummary], ta
             pt, clouds = _pending(first, est.attempts)
             draw.point_sets(rec, f"{base}/pending", TL, pt, clouds, (255, 140, 0), 0.12, 0.1)
         e, s = zero.errors[name], zero.sigmas[name]
-        draw.scalars(rec, f"/errors/position/{name}", TL, t, np.hypot(e[:, 0], e[:, 1]), name, rgb)
-        draw.scalars(rec, f"/errors/heading/{name}", TL, t, np.degrees(e[:, 2]), name, rgb)
-        draw.scalars(rec, f"/sigma/position/{name}", TL, t, np.hypot(s[:, 0], s[:, 1]), name, rgb)
-        draw.scalars(rec, f"/sigma/heading/{name}", TL, t, np.degrees(s[:, 2]), name, rgb)
-        draw.scalars(rec, f"/nees/{name}", TL, t, zero.nees[name], name, rgb)
+        draw.scalars(rec, f"/errors/position/{name}", TL, t, np.hypot(e[:, 0], e[:, 1]), name, rgb, w)
+        draw.scalars(rec, f"/errors/heading/{name}", TL, t, np.degrees(e[:, 2]), name, rgb, w)
+        draw.scalars(rec, f"/sigma/position/{name}", TL, t, np.hypot(s[:, 0], s[:, 1]), name, rgb, w)
+        draw.scalars(rec, f"/sigma/heading/{name}", TL, t, np.degrees(s[:, 2]), name, rgb, w)
+        draw.scalars(rec, f"/nees/{name}", TL, t, zero.nees[name], name, rgb, w)
     grey = (150, 150, 150)
     draw.scalars(rec, "/nees/band_lo", TL, t, np.full_like(t, band1[0]), "95 % low", grey, 1.0)
     draw.scalars(rec, "/nees/band_hi", TL, t, np.full_like(t, band1[1]), "95 % high", grey, 1.0)
@@ -161,10 +161,10 @@ def record(rec: rr.RecordingStream, first: RunResult, runs: list[RunSummary], ta
     curves = mc_curves(runs)
     mt = runs[0].t
     for name, c in curves.items():
-        rgb = first.estimators[name].color
-        draw.scalars(rec, f"/monte_carlo/position/{name}", TL, mt, c["position"], name, rgb)
-        draw.scalars(rec, f"/monte_carlo/heading/{name}", TL, mt, c["heading"], name, rgb)
-        draw.scalars(rec, f"/monte_carlo/nees/{name}", TL, mt, c["nees"], name, rgb)
+        rgb, w = first.estimators[name].color, 1.5 * draw.emphasis(first.estimators[name])
+        draw.scalars(rec, f"/monte_carlo/position/{name}", TL, mt, c["position"], name, rgb, w)
+        draw.scalars(rec, f"/monte_carlo/heading/{name}", TL, mt, c["heading"], name, rgb, w)
+        draw.scalars(rec, f"/monte_carlo/nees/{name}", TL, mt, c["nees"], name, rgb, w)
     lo, hi = metrics.chi2_band(3, len(runs))
     draw.scalars(rec, "/monte_carlo/nees/band_lo", TL, mt, np.full_like(mt, lo), "95 % low", grey, 1.0)
     draw.scalars(rec, "/monte_carlo/nees/band_hi", TL, mt, np.full_like(mt, hi), "95 % high", grey, 1.0)

@@ -97,29 +97,29 @@ def record(rec: rr.RecordingStream, first: RunResult, runs: list[RunSummary], ta
     draw.scalars(rec, "/series/range/truth", TL, t, d.range, "truth", draw.color("truth"))
 
     for name, est in first.estimates.items():
-        rgb = first.estimators[name].color
-        base = f"/map/{name}"
-        draw.track(rec, f"{base}/track", est.position, rgb, 0.5)
-        draw.moving_point(rec, f"{base}/position", TL, t, est.position, rgb, 3.0, name)
+        rgb, x = first.estimators[name].color, draw.emphasis(first.estimators[name])
+        base, w = f"/map/{name}", 1.5 * x
+        draw.track(rec, f"{base}/track", est.position, rgb, 0.5 * x)
+        draw.moving_point(rec, f"{base}/position", TL, t, est.position, rgb, 3.0 * x, name)
         if est.covariance is not None:
             draw.covariance_ellipses(rec, f"{base}/ellipse", TL, t, est.position, est.covariance, rgb)
         if est.forecast is not None:
-            draw.polylines(rec, f"{base}/forecast", TL, t, est.forecast, rgb, 0.5)
-        draw.scalars(rec, f"/series/alpha/{name}", TL, t, to_arcmin(est.alpha), name, rgb)
-        draw.scalars(rec, f"/series/beta/{name}", TL, t, to_arcmin(est.beta), name, rgb)
-        draw.scalars(rec, f"/series/range/{name}", TL, t, est.range, name, rgb)
+            draw.polylines(rec, f"{base}/forecast", TL, t, est.forecast, rgb, 0.5 * x)
+        draw.scalars(rec, f"/series/alpha/{name}", TL, t, to_arcmin(est.alpha), name, rgb, w)
+        draw.scalars(rec, f"/series/beta/{name}", TL, t, to_arcmin(est.beta), name, rgb, w)
+        draw.scalars(rec, f"/series/range/{name}", TL, t, est.range, name, rgb, w)
         e = runs[0].errors[name]
-        draw.scalars(rec, f"/errors/x/{name}", TL, t, e[:, 0], name, rgb)
-        draw.scalars(rec, f"/errors/y/{name}", TL, t, e[:, 1], name, rgb)
-        draw.scalars(rec, f"/errors/alpha/{name}", TL, t, to_arcmin(e[:, 2]), name, rgb)
-        draw.scalars(rec, f"/errors/beta/{name}", TL, t, to_arcmin(e[:, 3]), name, rgb)
+        draw.scalars(rec, f"/errors/x/{name}", TL, t, e[:, 0], name, rgb, w)
+        draw.scalars(rec, f"/errors/y/{name}", TL, t, e[:, 1], name, rgb, w)
+        draw.scalars(rec, f"/errors/alpha/{name}", TL, t, to_arcmin(e[:, 2]), name, rgb, w)
+        draw.scalars(rec, f"/errors/beta/{name}", TL, t, to_arcmin(e[:, 3]), name, rgb, w)
 
     for name, c in curves(runs).items():
-        rgb = first.estimators[name].color
+        rgb, w = first.estimators[name].color, 1.5 * draw.emphasis(first.estimators[name])
         if "position_rmse" in c:
-            draw.scalars(rec, f"/monte_carlo/position_rmse/{name}", TL, t, c["position_rmse"], name, rgb)
+            draw.scalars(rec, f"/monte_carlo/position_rmse/{name}", TL, t, c["position_rmse"], name, rgb, w)
         if "nees" in c:
-            draw.scalars(rec, f"/monte_carlo/nees/{name}", TL, t, c["nees"], f"{name} ANEES", rgb)
+            draw.scalars(rec, f"/monte_carlo/nees/{name}", TL, t, c["nees"], f"{name} ANEES", rgb, w)
     if runs[0].nees:
         lo, hi = metrics.chi2_band(4, len(runs))
         draw.scalars(rec, "/monte_carlo/nees/bound_lo", TL, t, np.full_like(t, lo), "95 % low",
