@@ -85,7 +85,7 @@ def run(experiment: str | Experiment, scenario: str | None = None, *, config: An
     else:
         cfg = exp.configure(scenario, **overrides)
     chosen = exp.select(estimators if estimators is not None else (cfg.estimators or None))
-    cfg.estimators = tuple(e.name if e.ref in (None, e.name) else f"{e.name}={e.ref}" for e in chosen)
+    cfg.estimators = tuple(e.spec for e in chosen)
     cfg.validate()
     out_path = stream.check_output(Path(out), force) if out is not None else None
     metrics_path = stream.check_plain_output(Path(metrics), force, "metrics file") if metrics is not None else None

@@ -1,8 +1,8 @@
 """The ``workbench`` launcher: a thin typer layer over :func:`workbench.api.run`.
 
 One command per registered experiment, built from its contract (its scenarios, options and
-estimator table) by one code path; plus ``list``, ``demo`` and ``view``. Nothing here knows
-an experiment's settings.
+estimator table) by one code path; plus ``list``, ``demo``, ``view``, and ``sweep`` /
+``sweep-report`` (:mod:`workbench.sweeps.commands`). Nothing here knows an experiment's settings.
 """
 
 from __future__ import annotations
@@ -28,6 +28,7 @@ import typer
 from workbench import experiments
 from workbench.errors import DataNotFound, WorkbenchError
 from workbench.paths import PROJECT_ROOT
+from workbench.sweeps import commands as sweep_commands
 
 app = typer.Typer(no_args_is_help=True, add_completion=False,
                   help="Estimation workbench: paper estimators against GTSAM, recorded to Rerun.")
@@ -146,6 +147,8 @@ def _command(exp) -> Callable:
 
 for _exp in experiments.all_experiments():
     app.command(_exp.name)(_command(_exp))
+app.command("sweep")(friendly(sweep_commands.sweep))
+app.command("sweep-report")(friendly(sweep_commands.sweep_report))
 
 
 @app.command("list")

@@ -23,7 +23,8 @@ An experiment is a package ``workbench/experiments/<name>/`` with one module per
                    (:func:`estimate_all`), a result with ``data``, ``estimates``,
                    ``estimators``, ``failed``
 ``evaluate.py``    ``summarise(result, cfg, run)``: a run's errors and summary (picklable,
-                   with ``run`` and ``failed``); ``statistics(cfg, summaries, label)``
+                   with ``run`` and ``failed``); ``statistics(cfg, summaries, label)``;
+                   ``run_metrics(summary, cfg)`` and ``RUN_METRICS``: a run's figures (sweeps)
 ``report.py``      ``table(stats)``: the results table (markdown)
 ``record.py``      ``layout(first)``: the default blueprint; ``record(rec, first, summaries,
                    table)``: run 0 drawn from ``first`` and its evaluation ``summaries[0]``
@@ -124,6 +125,18 @@ class Demo:
     scenario: str
     overrides: Mapping[str, Any] = field(default_factory=dict)
     max_runs: int | None = None
+    estimators: str | None = None
+
+
+@dataclass(frozen=True)
+class Preset:
+    """A named sweep: ``grid`` (config field -> values) on ``scenario`` with ``overrides``."""
+
+    name: str
+    description: str
+    grid: Mapping[str, tuple]
+    scenario: str | None = None
+    overrides: Mapping[str, Any] = field(default_factory=dict)
     estimators: str | None = None
 
 
@@ -239,6 +252,11 @@ class Estimator:
     @property
     def builtin(self) -> bool:
         return self.source == "built-in"
+
+    @property
+    def spec(self) -> str:
+        """What selects it again (in a config, a sweep's task): its name, or ``name=ref``."""
+        return self.name if self.ref in (None, self.name) else f"{self.name}={self.ref}"
 
     def function(self) -> Callable[..., Any]:
         """The runner; a ``"module:function"`` string is imported when first needed."""
@@ -393,6 +411,9 @@ class Experiment:
     extras: tuple[Option, ...] = ()
     required: tuple[str, ...] = ()     # estimators every run has (evaluation needs them)
     demo: tuple[Demo, ...] = ()        # what `workbench demo` runs of it
+    presets: tuple[Preset, ...] = ()   # named sweeps (`workbench sweep --preset NAME`)
+    headline: tuple[str, ...] = ()     # the per-run metrics a sweep's report leads with
+    paper_notes: Mapping[str, str] = {}  # metric -> the paper's figure, shown beside a sweep's table
     data_type: type = object           # the public dataset an estimator reads
     estimate_type: type = object       # the public estimate an estimator returns
 
@@ -454,6 +475,15 @@ class Experiment:
     def evaluate(self, result: Any, cfg: Any, run: int) -> Any:
         """A run's errors and summary (``evaluate.summarise``), small enough to send back."""
         return self.role("evaluate").summarise(result, cfg, run)
+
+    def run_metrics(self, summary: Any, cfg: Any) -> dict[str, dict[str, float]]:
+        """One run's figures per estimator, estimator -> metric -> value (a sweep's rows;
+        ``evaluate.run_metrics``, units in ``evaluate.RUN_METRICS``)."""
+        return self.role("evaluate").run_metrics(summary, cfg)
+
+    @property
+    def metric_units(self) -> dict[str, str]:
+        return dict(self.role("evaluate").RUN_METRICS)
 
     def statistics(self, cfg: Any, summaries: list[Any], label: str = "") -> dict:
         """The metrics over runs (``evaluate.statistics``)."""

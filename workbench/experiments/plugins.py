@@ -125,9 +125,8 @@ def from_function(exp: Experiment, fn: Any, name: str | None, ref: str | None, s
         raise WorkbenchError(f"estimator name {name!r}: use letters, digits and . _ - only")
     doc = (inspect.getdoc(fn) or "").strip().splitlines()
     description = meta.get("description") or (doc[0] if doc else f"{name} (a plugin)")
-    full_ref = ref if ref is None or ref == name else f"{name}={ref}"
     return Estimator(name, fn, tuple(meta.get("color") or color), description, bool(meta.get("causal", False)),
-                     bool(meta.get("covariances", False)), exp.name, source, full_ref)
+                     bool(meta.get("covariances", False)), exp.name, source, ref)
 
 
 def load(spec: str) -> Callable:

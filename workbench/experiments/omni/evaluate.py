@@ -176,3 +176,27 @@ def mc_curves(runs: list[RunSummary]) -> dict[str, dict[str, np.ndarray]]:
                 "nees": _nanmean0(N),
             }
     return out
+
+
+RUN_METRICS = {"position_rmse": "m", "heading_rmse": "deg", "map_rmse": "m", "final_position": "m",
+               "anees": "3 dof", "landmarks": "count", "seconds": "s"}
+"""The per-run figures of a sweep's tidy table, and their units."""
+
+
+def run_metrics(summary: RunSummary, cfg: OmniConfig) -> dict[str, dict[str, float]]:
+    """One run's figures per estimator (a sweep's rows): position and heading RMSE after
+    settling, the final map's RMSE, the last pose's error, the mean NEES after settling, the
+    landmarks initialised, the seconds. NaN where an estimator has none (odometry's map)."""
+    settled = summary.t >= cfg.settle
+    if not settled.any():
+        settled = np.ones_like(settled)
+    out = {}
+    for name, E in summary.errors.items():
+        pos = np.hypot(E[:, 0], E[:, 1])
+        m = summary.map_errors[name]
+        entry = {"position_rmse": _rms(pos[settled]), "heading_rmse": _rms(np.degrees(E[settled, 2])),
+                 "map_rmse": _rms(np.hypot(m[:, 0], m[:, 1])), "final_position": _rms(pos[-1:]),
+                 "anees": _mean(summary.nees[name][settled]), "landmarks": float(np.isfinite(m[:, 0]).sum()),
+                 "seconds": float(summary.seconds[name])}
+        out[name] = {k: (np.nan if v is None else float(v)) for k, v in entry.items()}
+    return out

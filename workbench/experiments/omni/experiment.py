@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from workbench.experiments.contract import Demo, Experiment
+from workbench.experiments.contract import Demo, Experiment, Preset
 from workbench.experiments.omni.config import EXTRAS, OPTIONS, SCENARIOS, OmniConfig
 from workbench.experiments.omni.estimate import SlamEstimate
 from workbench.experiments.omni.scenario import OmniData
@@ -27,6 +27,14 @@ class Omni(Experiment):
         Demo("omni-mrclam1", "mrclam", {"robot": 1}, max_runs=1),
         Demo("omni-mrclam2", "mrclam", {"robot": 2}, max_runs=1),
     )
+    presets = (
+        Preset("initialisation", "the skewness gate x the bearing noise x the bearing rate (the UT-gated "
+               "initialisation (1)-(5))", {"skew_gate": (0.1, 0.3, 1.0), "sigma_bearing_deg": (0.5, 1.0, 2.0),
+                                          "bearing_rate": (2.0, 5.0, 10.0)}, estimators="odometry,ekf,isam2"),
+    )
+    headline = ("position_rmse", "heading_rmse", "anees")
+    paper_notes = {"position_rmse": "paper's claim: under 0.5 m after settling (scenario paper)",
+                   "heading_rmse": "paper's claim: under 1 deg after settling (scenario paper)"}
 
     def check_extras(self, cfg: OmniConfig, extras: dict, force: bool) -> None:
         from workbench.recording import stream

@@ -299,3 +299,28 @@ def _recovery(cfg: SeaConfig, t: np.ndarray, transient: np.ndarray, level: float
     return {"seconds": float(max(0.0, last - cfg.impulse_end)), "level_arcmin": level,
             "settled": not bool(over.size and over[-1] == len(t) - 1),
             "peak_arcmin": float(np.nanmax(rms))}
+
+
+RUN_METRICS = {"position_rmse": "m", "rmse_x": "m", "rmse_y": "m", "rmse_alpha": "arcmin", "rmse_beta": "arcmin",
+               "bias_x": "m", "bias_y": "m", "anees": "4 states", "coverage": "fraction", "seconds": "s"}
+"""The per-run figures of a sweep's tidy table, and their units."""
+
+
+def run_metrics(summary: RunSummary, cfg: SeaConfig) -> dict[str, dict[str, float]]:
+    """One run's figures per estimator (a sweep's rows): RMSEs and biases over the run's steps
+    (so their mean over runs is Table 2's), the position RMSE, the time-averaged NEES, the
+    share of steps with an estimate, the seconds."""
+    out = {}
+    for name, E in summary.errors.items():
+        with np.errstate(invalid="ignore"), warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)
+            rm = metrics.rmse(E, axis=0)
+            b = metrics.bias(E, axis=0)
+            entry = {"position_rmse": float(np.sqrt(np.nanmean(E[:, 0] ** 2 + E[:, 1] ** 2))),
+                     "rmse_x": float(rm[0]), "rmse_y": float(rm[1]), "rmse_alpha": float(to_arcmin(rm[2])),
+                     "rmse_beta": float(to_arcmin(rm[3])), "bias_x": float(b[0]), "bias_y": float(b[1]),
+                     "coverage": float(np.mean(np.isfinite(E[:, 0]))), "seconds": float(summary.seconds[name])}
+            if name in summary.nees:
+                entry["anees"] = float(np.nanmean(summary.nees[name]))
+        out[name] = entry
+    return out

@@ -4,7 +4,7 @@ the Python API and the sweeps use. The flow goes to this package's role modules
 
 from __future__ import annotations
 
-from workbench.experiments.contract import Demo, Experiment
+from workbench.experiments.contract import Demo, Experiment, Preset
 from workbench.experiments.sea.config import OPTIONS, SCENARIOS, SeaConfig
 from workbench.experiments.sea.estimate import Estimate
 from workbench.experiments.sea.scenario import SeaData
@@ -25,6 +25,17 @@ class Sea(Experiment):
         Demo("sea-track-loss", "track-loss", estimators="+fixed-lag"),
         Demo("sea-ais", "ais", max_runs=5, estimators="+fixed-lag"),
     )
+    presets = (
+        Preset("ar-models", "algorithms 2-3's forgetting factor x window x AR order (Fig. 4-5)",
+               {"lam": (0.95, 0.98, 1.0), "window": (60, 120, 240), "order": (3, 5, 8)},
+               estimators="geometric,rls,window-rls,ekf"),
+        Preset("noise", "the camera's angle noises, half and twice Table 1's",
+               {"sigma_alpha_arcmin": (0.44, 0.88, 1.76), "sigma_beta_arcmin": (0.78, 1.56, 3.12)}),
+    )
+    headline = ("position_rmse", "rmse_alpha", "anees")
+    paper_notes = {"rmse_x": "paper's Table 2: geometric 20.7 m, rls 16.9 m (scenario paper)",
+                   "rmse_y": "paper's Table 2: geometric 31 m, rls 25.2 m (scenario paper)",
+                   "rmse_alpha": "paper's Table 2: geometric 0.88', rls 0.57' (scenario paper)"}
 
 
 EXPERIMENT = Sea()

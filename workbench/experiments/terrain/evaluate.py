@@ -129,3 +129,26 @@ def statistics(cfg: TerrainConfig, runs: list[RunSummary], label: str = "") -> d
             out["estimators"][name]["anees"] = float(np.mean(nees))
             out["estimators"][name]["nees_band"] = [lo, hi]
     return out
+
+
+RUN_METRICS = {"position_error": "m", "attitude_error": "rad", "ground_rmse": "m", "dx": "m", "dy": "m",
+               "dh": "m", "dx_fraction": "of max", "dr_fraction": "of max", "nees": "3 dof", "seconds": "s"}
+"""The per-run figures of a sweep's tidy table, and their units."""
+
+
+def run_metrics(summary: RunSummary, cfg: TerrainConfig) -> dict[str, dict[str, float]]:
+    """One run's figures per estimator (a sweep's rows): image II's position error (3D norm)
+    and its components (truth - estimate), the attitude error (norm), the halftone model's
+    ground RMSE, the paper's Fig. 3 quantities ``|dX| / max`` and ``sqrt(dX^2 + dY^2) / max`` (their
+    means and spreads over runs are the paper's), the position NEES where there is a covariance,
+    the seconds."""
+    out = {}
+    for name, p in summary.position.items():
+        entry = {"position_error": float(np.linalg.norm(p)), "attitude_error": float(np.linalg.norm(
+                 summary.attitude[name])), "ground_rmse": float(summary.ground_rmse[name]), "dx": float(p[0]),
+                 "dy": float(p[1]), "dh": float(p[2]), "dx_fraction": float(abs(p[0]) / cfg.max_linear),
+                 "dr_fraction": float(np.hypot(p[0], p[1]) / cfg.max_linear), "seconds": float(summary.seconds[name])}
+        if name in summary.nees:
+            entry["nees"] = float(summary.nees[name])
+        out[name] = entry
+    return out

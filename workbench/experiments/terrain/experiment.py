@@ -8,7 +8,7 @@ import time
 from dataclasses import replace
 from pathlib import Path
 
-from workbench.experiments.contract import Demo, Experiment, split_list
+from workbench.experiments.contract import Demo, Experiment, Preset, split_list
 from workbench.experiments.terrain.config import EXTRAS, OPTIONS, SCENARIOS, TerrainConfig
 from workbench.experiments.terrain.estimate import Estimate
 from workbench.experiments.terrain.scenario import TerrainData
@@ -30,6 +30,18 @@ class Terrain(Experiment):
         Demo("terrain-ii-only", "synthetic", {"mode": "ii-only"}, max_runs=4),
         Demo("terrain-ngi", "ngi", {"mode": "ii-only"}, max_runs=1),
     )
+    presets = (
+        Preset("paper-grid", "the paper's grid (Fig. 3): image sizes x maximum linear and angular errors x the "
+               "number of functionals, hypotheses drawn in the confidence cube",
+               {"size": ("100x100", "200x200", "400x500"), "max_linear": (50.0, 100.0, 200.0),
+                "max_angular": (0.001, 0.003, 0.009), "samples": (10, 50, 100)},
+               overrides={"hypotheses": "sample"}, estimators="navigation,recurrent-search,recurrent-search-refined"),
+    )
+    headline = ("dr_fraction", "dx_fraction", "position_error")
+    paper_notes = {"dr_fraction": "paper (Fig. 3): mean radial error 40-60 % of the maximum after processing; "
+                   "its spread 3-10 % (100x100), 2-8 % (200x200)",
+                   "dx_fraction": "paper (Fig. 3): mean |dX| at most 40-60 % of the maximum; spread 6-16 % "
+                   "(100x100), 4-13 % (200x200)"}
 
     # --- the paper's grid (``--sweep DIR``), instead of the usual run
     def _sizes(self, cfg: TerrainConfig, extras: dict) -> tuple[str, ...]:
