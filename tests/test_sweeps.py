@@ -103,7 +103,8 @@ def test_a_stopped_sweep_resumes_without_recomputing(tmp_path, how):
     assert 6 <= len(before) < 48
     r = subprocess.run(_cli(out, "--resume"), capture_output=True, text=True, timeout=300)
     assert r.returncode == 0, r.stderr
-    assert f"48 task(s) on local pool, 2 process(es): {len(before)} done before, {48 - len(before)} computed" in r.stdout
+    done = f"48 task(s) on local pool, 2 process(es): {len(before)} done before, {48 - len(before)} computed"
+    assert done in r.stdout
     after = {p.name: (p.stat().st_ino, p.stat().st_mtime_ns) for p in (out / "tasks").glob("*.parquet")}
     assert len(after) == 48 and all(after[k] == v for k, v in before.items())
     assert len(rows(out)) == 2 * 24 * ROWS and not list((out / "tasks").glob(".*.tmp"))
