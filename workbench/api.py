@@ -92,11 +92,6 @@ def run(experiment: str | Experiment, scenario: str | None = None, *, config: An
     exp.check_extras(cfg, extras, force)
     report = progress or (lambda done, total: None)
     t0 = time.perf_counter()
-    alternative = exp.instead(cfg, extras, jobs, report)
-    if alternative is not None:
-        table = alternative.pop("_table", "")
-        return Result(exp.name, cfg, alternative, table, lines=alternative.pop("_lines", []))
-
     done = [0]
 
     def tick(n: int) -> None:

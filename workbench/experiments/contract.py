@@ -138,6 +138,7 @@ class Preset:
     scenario: str | None = None
     overrides: Mapping[str, Any] = field(default_factory=dict)
     estimators: str | None = None
+    report: str | None = None  # "module:function(table, folder, definition) -> paths": its own report too
 
 
 # --- command-line options --------------------------------------------------------------------------
@@ -509,13 +510,9 @@ class Experiment:
     def label(self, first: Any) -> str:
         return first.data.label
 
-    # --- optional hooks for an experiment's extra options (exports, an alternative run)
+    # --- optional hooks for an experiment's extra options (exports)
     def check_extras(self, cfg: Any, extras: dict, force: bool) -> None:
         """Check the extra outputs before any work."""
-
-    def instead(self, cfg: Any, extras: dict, jobs: int | None, progress: Callable[[int], None]) -> dict | None:
-        """An alternative to the usual run (e.g. terrain's grid of the paper), or None."""
-        return None
 
     def export(self, first: Any, stats: dict, extras: dict, force: bool) -> list[str]:
         """Extra exports after the run; lines to print."""

@@ -178,8 +178,3 @@ OPTIONS: tuple[Option, ...] = (
     Option("pair", "ngi: the two frames, image I first.", str, parse=split_list),
 )
 """The terrain experiment's own command-line options (the shared ones are the CLI's)."""
-
-EXTRAS: tuple[Option, ...] = (
-    Option("sweep", "Run the paper's grid instead; write grid.md, grid.csv, PNGs here.", Path),
-    Option("sweep_sizes", "sweep: the image sizes [100x100,200x200,400x500].", str),
-)

@@ -1,31 +1,25 @@
-"""The paper's grid: maximum linear errors 50, 100, 200 m x maximum angular errors 0.001,
-0.003, 0.009 rad x image sizes 100x100, 200x200, 400x500 x 10, 50, 100 functionals in the
-sample, over Monte Carlo runs. Reported as the paper's Fig. 3 reports it: the mean and the
-standard deviation over runs of image II's residual |dX|, |dY| and radial sqrt(dX^2 + dY^2)
-errors, as fractions of the maximum linear error; for the winner's centre (the paper) and the
-in-cell refinement. Written as a Markdown table, a CSV of every cell and PNG plots with the
-paper's ranges drawn beside.
+"""The paper's grid, reported as the paper reports it: a sweep (``workbench sweep terrain
+--preset paper-grid``) over maximum linear errors 50, 100, 200 m x maximum angular errors
+0.001, 0.003, 0.009 rad x image sizes 100x100, 200x200, 400x500 x 10, 50, 100 functionals in the
+sample, and this module's :func:`from_sweep` turning its rows into Fig. 3's figures: the mean
+and the standard deviation over runs of image II's residual |dX|, |dY| and radial
+sqrt(dX^2 + dY^2) errors, as fractions of the maximum linear error, for the winner's centre (the
+paper) and the in-cell refinement; ``grid.md``, ``grid.csv`` (every cell and run) and PNG plots
+with the paper's ranges drawn beside, in the sweep's folder.
 
 Readings: "number of functionals in the sample" N is the search's hypotheses drawn uniformly
-in the confidence cube (``--hypotheses sample``); each run draws one scene per image size
-(reused over the 81 error cells, whose errors are drawn independently); the error mode is
-``--mode`` (default the common one).
+in the confidence cube (``hypotheses sample``); run k of every cell draws the same scene and the
+same uniform draws of the errors (the sweep's common random numbers), scaled by the cell's
+maxima; the error mode is ``--set mode=...`` (default the common one).
 """
 
 from __future__ import annotations
 
 import csv
 import io
-import os
-from concurrent.futures import ProcessPoolExecutor
-from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
-
-from workbench.experiments.terrain import navigation, search
-from workbench.experiments.terrain.config import TerrainConfig
-from workbench.experiments.terrain.scenario import synthetic_scene
 
 LINEAR = (50.0, 100.0, 200.0)
 ANGULAR = (0.001, 0.003, 0.009)
@@ -47,52 +41,6 @@ READING = (
     "random cells of a 6-dimensional cube is a good part of the cube under either reading; the paper's few per "
     "cent are of the size of a standard error of a mean over some ten runs (sd / sqrt(runs)), which may be "
     "what it tabulates. The paper gives neither its terrain, texture, flight height nor run count.")
-
-
-def _one(args: tuple[TerrainConfig, str, int]) -> list[dict]:
-    """Every error cell of one image size and one run."""
-    cfg, size, run = args
-    si = SIZES.index(size) if size in SIZES else 9
-    base = replace(cfg, size=size, hypotheses="sample", max_linear=max(LINEAR), max_angular=max(ANGULAR))
-    sc = synthetic_scene(base, np.random.default_rng([cfg.seed, run, si]))
-    rows = []
-    for li, lin in enumerate(LINEAR):
-        for ai, ang in enumerate(ANGULAR):
-            for n in FUNCTIONALS:
-                c = replace(base, max_linear=lin, max_angular=ang, samples=n)
-                rng = np.random.default_rng([cfg.seed, run, si, li, ai, n])
-                state = navigation.draw_state(c, rng)
-                m = navigation.error_map(c.mode, sc.interval)
-                pos, att = navigation.measured(sc.position, sc.angles, m @ state)
-                p = search.make_problem(c, sc.k, sc.dem, pos, att, sc.images, sc.interval)
-                res = search.run(p, search.hypotheses(c, rng))
-                row = {"size": size, "max_linear": lin, "max_angular": ang, "functionals": n, "run": run}
-                for name, est in (("navigation", np.zeros_like(state)), ("centre", res.centre),
-                                  ("refined", res.refinement)):
-                    err = (m @ (state - est))[1]        # image II's residual pose error
-                    row[f"{name}_dx"], row[f"{name}_dy"] = float(err[0]), float(err[1])
-                rows.append(row)
-    return rows
-
-
-def run_grid(cfg: TerrainConfig, sizes: tuple[str, ...] = SIZES, jobs: int | None = None,
-             progress=None) -> list[dict]:
-    """Every cell of every run (one row each)."""
-    tasks = [(cfg, s, r) for s in sizes for r in range(cfg.runs)]
-    jobs = jobs or min(2, os.cpu_count() or 1)
-    rows: list[dict] = []
-    if jobs == 1 or len(tasks) == 1:
-        for t in tasks:
-            rows += _one(t)
-            if progress:
-                progress(1)
-    else:
-        with ProcessPoolExecutor(max_workers=jobs) as pool:
-            for part in pool.map(_one, tasks):
-                rows += part
-                if progress:
-                    progress(1)
-    return rows
 
 
 def aggregate(rows: list[dict], keys: tuple[str, ...]) -> list[dict]:
@@ -125,10 +73,11 @@ def to_csv(rows: list[dict]) -> str:
     return buf.getvalue()
 
 
-def table(rows: list[dict], cfg: TerrainConfig) -> str:
-    """Markdown: per image size, the statistics against each of the paper's three axes."""
-    lines = [f"**terrain grid** (mode `{cfg.mode}`, {cfg.distribution} errors, {cfg.runs} run(s) per cell, "
-             f"seed {cfg.seed}): mean and "
+def table(rows: list[dict], info: dict) -> str:
+    """Markdown: per image size, the statistics against each of the paper's three axes; ``info``
+    holds the sweep's ``mode``, ``distribution``, ``runs`` and ``seed``."""
+    lines = [f"**terrain grid** (mode `{info['mode']}`, {info['distribution']} errors, {info['runs']} run(s) per "
+             f"cell, seed {info['seed']}): mean and "
              "standard deviation of image II's residual errors as fractions of the maximum linear error; "
              "`centre` = the winning hypothesis (the paper), `refined` = its filter's state", ""]
     for axis, label in (("max_linear", "max linear error m"), ("max_angular", "max angular error rad"),
@@ -190,14 +139,14 @@ def plot(path: Path, title: str, xs: list[float], series: dict[str, list[float]]
     cv2.imwrite(str(path), img)
 
 
-def write(rows: list[dict], cfg: TerrainConfig, out_dir: Path) -> list[Path]:
+def write(rows: list[dict], info: dict, out_dir: Path) -> list[Path]:
     """``grid.md``, ``grid.csv`` (every cell and run) and one PNG per size and estimate against
     the maximum linear error (Fig. 3's layout) plus the spread against N."""
     from workbench.recording import stream
 
     out_dir.mkdir(parents=True, exist_ok=True)
     written = [out_dir / "grid.md", out_dir / "grid.csv"]
-    stream.write_text_atomic(written[0], table(rows, cfg))
+    stream.write_text_atomic(written[0], table(rows, info))
     stream.write_text_atomic(written[1], to_csv(rows))
     for size in sorted({r["size"] for r in rows}):
         sub = [r for r in rows if r["size"] == size]
@@ -218,3 +167,31 @@ def write(rows: list[dict], cfg: TerrainConfig, out_dir: Path) -> list[Path]:
              "paper: 11-12 % at N=10 -> 4-8 % at N=100", "functionals in the sample N")
         written.append(path)
     return written
+
+
+NAMES = {"navigation": "navigation", "recurrent-search": "centre", "recurrent-search-refined": "refined"}
+"""The sweep's estimators as the grid's estimates."""
+
+
+def from_sweep(table, folder: Path, definition: dict) -> list[Path]:
+    """The paper-grid preset's own report from a sweep's tidy rows: a row per cell and run
+    with each estimate's residual dX, dY, then :func:`write`."""
+    import pyarrow as pa
+    import pyarrow.compute as pc
+
+    from workbench.experiments.terrain.config import TerrainConfig
+
+    fixed = definition.get("fixed", {})
+    base = TerrainConfig(**{k: v for k, v in fixed.items() if k in ("mode", "distribution")})
+    sub = table.filter(pc.and_(pc.is_in(table["metric"], value_set=pa.array(["dx", "dy"])),
+                               pc.is_in(table["estimator"], value_set=pa.array(list(NAMES)))))
+    rows: dict[tuple, dict] = {}
+    for r in sub.to_pylist():
+        key = (r["cell"], r["run"])
+        row = rows.setdefault(key, {"size": r["p.size"], "max_linear": r["p.max_linear"],
+                                    "max_angular": r["p.max_angular"], "functionals": r["p.samples"], "run": r["run"]})
+        row[f"{NAMES[r['estimator']]}_{r['metric']}"] = r["value"]
+    out = [rows[k] for k in sorted(rows)]
+    info = {"mode": base.mode, "distribution": base.distribution, "runs": len({r["run"] for r in out}),
+            "seed": table["seed"][0].as_py()}
+    return write(out, info, Path(folder))
