@@ -30,6 +30,7 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_sea_images.py
 	$(BIN)/python benchmarks/bench_omni_images.py
 	$(BIN)/python benchmarks/bench_terrain.py
+	$(BIN)/python benchmarks/bench_sweep.py
 
 clean:
 	rm -rf $(VENV) recordings/*.rrd
