@@ -2,7 +2,7 @@
 ``summary.csv`` and ``summary.md`` (per cell, estimator and metric: the mean over runs, its
 spread, a 95 % interval of the mean), a PNG per headline metric and swept setting (the mean
 over the other settings' cells and the runs, one line per estimator, with its interval), and
-``sweep.rrd``: the same curves in Rerun, one timeline per swept setting.
+``sweep.rrd``: the same curves in Rerun, a tab per swept setting on one timeline (the value's index).
 
 The 95 % interval is Student's t on the runs: ``mean +- t(0.975, n-1) sd / sqrt(n)``.
 """
@@ -211,9 +211,15 @@ def plots(table: pa.Table, folder: Path) -> list[Path]:
     return written
 
 
+INDEX = "value"
+"""The recording's one timeline: the index of a swept setting's value (a viewer shows one
+timeline at a time, so every view's curves are on the same one; the views name the values)."""
+
+
 def recording(table: pa.Table, folder: Path, summary_md: str) -> Path:
-    """``sweep.rrd``: per swept setting a timeline (the index of its value), and per headline
-    metric and estimator the marginal mean on it; the summary as a text document."""
+    """``sweep.rrd``: per swept setting a tab, per headline metric a view of each estimator's
+    mean against the setting's values (their index on the timeline ``value``, the values in
+    the view's name); the summary as a text document."""
     import rerun as rr
     import rerun.blueprint as rrb
 
@@ -222,26 +228,29 @@ def recording(table: pa.Table, folder: Path, summary_md: str) -> Path:
     experiment = table["experiment"][0].as_py()
     metrics = headline(experiment, list(dict.fromkeys(table["metric"].to_pylist())))
     rgb = colors(experiment, list(dict.fromkeys(table["estimator"].to_pylist())))
+    values = {key: sorted(set(table[f"p.{key}"].to_pylist()), key=lambda v: (isinstance(v, str), v))
+              for key in params(table)}
     tabs = []
-    for key in params(table):
-        tabs.append(rrb.Vertical(*[rrb.TimeSeriesView(origin=f"/sweep/{key}/{m}", name=f"{m} against {key}")
+    for key, vals in values.items():
+        shown = ", ".join(f"#{i} {v}" for i, v in enumerate(vals))
+        tabs.append(rrb.Vertical(*[rrb.TimeSeriesView(origin=f"/sweep/{key}/{m}", name=f"{m} against {key} ({shown})")
                                    for m in metrics], name=f"against {key}"))
     tabs.append(rrb.TextDocumentView(origin="/summary", name="summary"))
     blueprint = rrb.Blueprint(rrb.Tabs(*tabs), collapse_panels=True)
     path = folder / "sweep.rrd"
     with stream.recording(path, f"{experiment}-sweep", {"sweep": str(folder)}, int(table["seed"][0].as_py()),
                           blueprint) as rec:
-        for key in params(table):
-            values = sorted(set(table[f"p.{key}"].to_pylist()), key=lambda v: (isinstance(v, str), v))
+        for key, vals in values.items():
             for metric in metrics:
                 for name, (_, mean, _) in marginals(table, key, metric).items():
                     entity = f"/sweep/{key}/{metric}/{name}"
                     rec.log(entity, rr.SeriesLines(colors=[rgb[name]], names=[name], widths=[2.0]), static=True)
+                    rec.log(entity, rr.SeriesPoints(colors=[rgb[name]], marker_sizes=[4.0]), static=True)
                     ok = np.isfinite(mean)
                     if ok.any():
-                        rec.send_columns(entity, indexes=[rr.TimeColumn(key, sequence=np.flatnonzero(ok))],
+                        rec.send_columns(entity, indexes=[rr.TimeColumn(INDEX, sequence=np.flatnonzero(ok))],
                                          columns=rr.Scalars.columns(scalars=mean[ok]))
-            rec.send_property(f"values_of_{key}", rr.AnyValues(values=[str(v) for v in values]))
+            rec.send_property(f"values_of_{key}", rr.AnyValues(values=[str(v) for v in vals]))
         rec.log("/summary", rr.TextDocument(summary_md, media_type=rr.MediaType.MARKDOWN), static=True)
     return path
 
