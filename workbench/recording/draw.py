@@ -19,8 +19,9 @@ def color(name: str) -> tuple[int, int, int]:
 
 def emphasis(estimator) -> float:
     """How much wider a line (larger a marker) an estimator gets: a researcher's own plugin,
-    what they came to look at, is drawn 1.8 times as wide as the built-ins it sits among."""
-    return 1.0 if estimator.builtin else 1.8
+    what they came to look at, is drawn 2.5 times as wide as the built-ins it sits among (at
+    1.8 a browser review still found it under the built-ins' lines)."""
+    return 1.0 if estimator.builtin else 2.5
 
 
 def times(timeline: str, seconds: np.ndarray) -> rr.TimeColumn:
