@@ -5,6 +5,7 @@ name; here are its declarations (the paper's grid is the sweep preset ``paper-gr
 from __future__ import annotations
 
 from workbench.experiments.contract import Demo, Experiment, Preset
+from workbench.experiments.terrain import grid
 from workbench.experiments.terrain.config import OPTIONS, SCENARIOS, TerrainConfig
 from workbench.experiments.terrain.estimate import Estimate
 from workbench.experiments.terrain.scenario import TerrainData
@@ -28,8 +29,8 @@ class Terrain(Experiment):
     presets = (
         Preset("paper-grid", "the paper's grid (Fig. 3): image sizes x maximum linear and angular errors x the "
                "number of functionals, hypotheses drawn in the confidence cube",
-               {"size": ("100x100", "200x200", "400x500"), "max_linear": (50.0, 100.0, 200.0),
-                "max_angular": (0.001, 0.003, 0.009), "samples": (10, 50, 100)},
+               {"size": grid.SIZES, "max_linear": grid.LINEAR, "max_angular": grid.ANGULAR,
+                "samples": grid.FUNCTIONALS},
                overrides={"hypotheses": "sample"}, estimators="navigation,recurrent-search,recurrent-search-refined",
                report="workbench.experiments.terrain.grid:from_sweep"),
     )
