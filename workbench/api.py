@@ -119,7 +119,7 @@ def run(experiment: str | Experiment, scenario: str | None = None, *, config: An
     table = exp.table(stats)
     if out_path is not None:
         with stream.recording(out_path, exp.name, cfg.to_json(), cfg.seed, exp.blueprint(first),
-                              spawn=spawn, serve=serve) as rec:
+                              spawn=spawn, serve=serve, metrics=stats) as rec:
             exp.record(rec, first, summaries, table)
         stats["recording"] = str(out_path)
     lines = exp.export(first, stats, extras, force)

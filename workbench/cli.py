@@ -1,8 +1,9 @@
 """The ``workbench`` launcher: a thin typer layer over :func:`workbench.api.run`.
 
 One command per registered experiment, built from its contract (its scenarios, options and
-estimator table) by one code path; plus ``list``, ``demo``, ``view``, and ``sweep`` /
-``sweep-report`` (:mod:`workbench.sweeps.commands`). Nothing here knows an experiment's settings.
+estimator table) by one code path; plus ``list``, ``demo``, ``view``, ``info`` / ``replay``
+(:mod:`workbench.recording.commands`) and ``sweep`` / ``sweep-report``
+(:mod:`workbench.sweeps.commands`). Nothing here knows an experiment's settings.
 """
 
 from __future__ import annotations
@@ -28,6 +29,7 @@ import typer
 from workbench import experiments
 from workbench.errors import DataNotFound, WorkbenchError
 from workbench.paths import PROJECT_ROOT
+from workbench.recording import commands as recording_commands
 from workbench.sweeps import commands as sweep_commands
 
 app = typer.Typer(no_args_is_help=True, add_completion=False,
@@ -149,6 +151,8 @@ for _exp in experiments.all_experiments():
     app.command(_exp.name)(_command(_exp))
 app.command("sweep")(friendly(sweep_commands.sweep))
 app.command("sweep-report")(friendly(sweep_commands.sweep_report))
+app.command("info")(friendly(recording_commands.info))
+app.command("replay")(friendly(recording_commands.replay))
 
 
 @app.command("list")

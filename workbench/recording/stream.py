@@ -3,9 +3,12 @@ live viewer (``--spawn``) or gRPC server (``--serve``), and the recording's prop
 
 from __future__ import annotations
 
+import datetime
 import json
 import os
+import shlex
 import subprocess
+import sys
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -48,6 +51,14 @@ def write_text_atomic(path: Path, text: str) -> None:
     os.replace(tmp, path)
 
 
+def command_line() -> str:
+    """How this process was started, as a shell would take it (``workbench sea --runs 20 ...``)."""
+    argv = list(sys.argv)
+    if argv and Path(argv[0]).name in ("workbench", "__main__.py"):
+        argv[0] = "workbench"
+    return shlex.join(argv) if argv and argv[0] else "python"
+
+
 def git_commit() -> str | None:
     """The source tree's commit, where it is a git checkout."""
     try:
@@ -60,8 +71,11 @@ def git_commit() -> str | None:
 
 @contextmanager
 def recording(path: Path, experiment: str, config: dict, seed: int,
-              blueprint: rrb.Blueprint, spawn: bool = False, serve: bool = False):
-    """A recording stream saved to ``path`` atomically, with its properties stored.
+              blueprint: rrb.Blueprint, spawn: bool = False, serve: bool = False, metrics: dict | None = None):
+    """A recording stream saved to ``path`` atomically, with its properties stored: the
+    experiment, its config, the package version, the git commit, the seed, the command line
+    that made it and when, and (``metrics``) the numbers it reports, so ``workbench info``
+    tells what made it and ``workbench replay`` whether it reproduces.
 
     Yields the stream; on success the temporary file is renamed to ``path``; on an error it
     is removed and ``path`` is untouched.
@@ -79,7 +93,10 @@ def recording(path: Path, experiment: str, config: dict, seed: int,
     rec.send_recording_name(f"workbench {experiment}")
     rec.send_property("workbench", rr.AnyValues(
         experiment=experiment, config=json.dumps(config, sort_keys=True), version=__version__,
-        git_commit=git_commit() or "unknown", seed=seed))
+        git_commit=git_commit() or "unknown", seed=seed, command=command_line(),
+        date=datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds")))
+    if metrics is not None:
+        rec.send_property("workbench_metrics", rr.AnyValues(json=json.dumps(metrics, default=str)))
     ok = False
     try:
         yield rec

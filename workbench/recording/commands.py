@@ -1,0 +1,39 @@
+"""``workbench info`` and ``workbench replay``: the command line's thin layer over
+:mod:`.provenance` (registered by :mod:`workbench.cli`)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import typer
+
+DIFFERS = 1  # replay: the numbers do not reproduce
+
+
+def info(file: Path = typer.Argument(..., help="A .rrd recording.")) -> None:
+    """What made a recording: its command, config, version, commit, seed and date, its
+    estimators and its results table."""
+    from workbench.recording import provenance
+
+    typer.echo(provenance.describe(provenance.read(file)))
+
+
+def replay(file: Path = typer.Argument(..., help="A .rrd recording."),
+           jobs: int = typer.Option(None, help="Processes for the Monte Carlo runs [up to 2].")) -> None:
+    """Run a recording's experiment again from its own stored config and say whether every
+    number reproduces (to 1e-9 relative, timings aside); exit code 1 if not."""
+    from workbench.recording import provenance, stream
+
+    stored = provenance.read(file)
+    cfg = provenance.config_of(stored)
+    now = stream.git_commit() or "unknown"
+    if "unknown" not in (stored.git_commit, now) and stored.git_commit != now:
+        typer.echo(f"warning: recorded at commit {stored.git_commit[:12]}, this is {now[:12]}: "
+                   "a difference may be the code's", err=True)
+    typer.echo(f"replaying {stored.experiment} ({cfg.runs} run(s)), recorded as: {stored.command or '?'}")
+    compared, diff = provenance.replay(stored, jobs)
+    if diff:
+        typer.echo(f"does not reproduce: {len(diff)} of {compared} numbers differ")
+        typer.echo("\n".join(f"  {line}" for line in diff[:25]) + ("\n  ..." if len(diff) > 25 else ""))
+        raise typer.Exit(DIFFERS)
+    typer.echo(f"reproduces: all {compared} numbers equal to {provenance.TOLERANCE:g} (relative), timings aside")

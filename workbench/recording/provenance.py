@@ -1,0 +1,167 @@
+"""What a recording says of itself, and whether it still holds: ``workbench info FILE.rrd``
+(what made it: the command, the config, the version, the commit, the seed, the date, its
+estimators and results table) and ``workbench replay FILE.rrd`` (run the experiment again
+from the recording's own stored config and compare every number with the stored metrics).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import warnings
+from pathlib import Path
+from typing import Any
+
+from workbench import __version__
+from workbench.errors import WorkbenchError
+
+IGNORED = {"seconds", "wall_seconds", "recording", "frames_per_second", "seconds_per_frame", "estimator_table",
+           "tum", "config"}
+"""Metrics keys that are not results: timings, paths, the config itself (compared separately)."""
+TOLERANCE = 1e-9
+
+
+@dataclasses.dataclass
+class Stored:
+    """A recording's properties: who made it and with what, and the numbers it reported."""
+
+    path: Path
+    experiment: str
+    config: dict
+    version: str
+    git_commit: str
+    seed: int
+    command: str
+    date: str
+    metrics: dict | None
+
+
+def read(path: Path) -> Stored:
+    """The recording's stored provenance; a one-line error for anything that is not one."""
+    from workbench.recording import readback
+
+    path = Path(path).expanduser()
+    if not path.is_file():
+        raise WorkbenchError(f"no such recording: {path}")
+    if path.suffix != ".rrd":
+        raise WorkbenchError(f"not a recording (.rrd): {path}")
+    try:
+        with warnings.catch_warnings():  # the reader warns of a missing footer first: the error says it all
+            warnings.simplefilter("ignore")
+            props = readback.properties(path)
+            metrics = readback.properties(path, "workbench_metrics")
+    except Exception as exc:  # the reader's errors for a file that is not (or no longer) an .rrd
+        raise WorkbenchError(f"cannot read {path} as a Rerun recording: {type(exc).__name__}: "
+                             f"{str(exc).splitlines()[0] if str(exc) else ''}") from None
+    if "experiment" not in props or "config" not in props:
+        raise WorkbenchError(f"{path} is not a workbench recording (no stored experiment and config)")
+    _check_version(path, str(props.get("version", "")))
+    return Stored(path, str(props["experiment"]), json.loads(props["config"]), str(props.get("version", "")),
+                  str(props.get("git_commit", "unknown")), int(props.get("seed", 0)), str(props.get("command", "")),
+                  str(props.get("date", "")), json.loads(metrics["json"]) if "json" in metrics else None)
+
+
+def _check_version(path: Path, version: str) -> None:
+    from packaging.version import InvalidVersion, Version
+
+    try:
+        recorded = Version(version)
+    except InvalidVersion:
+        raise WorkbenchError(f"{path} was recorded by an unknown workbench version {version!r}") from None
+    mine = Version(__version__) if __version__ != "0.0.0+unknown" else recorded
+    if recorded.release[:2] > mine.release[:2]:
+        raise WorkbenchError(f"{path} was recorded by workbench {version}, newer than this {__version__}; update")
+
+
+def config_of(stored: Stored) -> Any:
+    """The recording's config, rebuilt as its experiment's config type."""
+    from workbench.experiments import REGISTRY, get
+
+    if stored.experiment not in REGISTRY:
+        raise WorkbenchError(f"{stored.path} is a recording of {stored.experiment!r}, which this workbench does not "
+                             f"have ({', '.join(REGISTRY)})")
+    exp = get(stored.experiment)
+    fields = {f.name: f for f in dataclasses.fields(exp.config_type)}
+    unknown = sorted(set(stored.config) - set(fields))
+    if unknown:
+        raise WorkbenchError(f"{stored.path}'s config has settings this workbench does not know: {', '.join(unknown)}")
+    values = {}
+    for name, value in stored.config.items():
+        default = fields[name].metadata.get("base", fields[name].default)
+        if isinstance(value, list) and (isinstance(default, tuple) or name == "estimators"):
+            value = tuple(tuple(v) if isinstance(v, list) else v for v in value)
+        if name == "data" and value is not None:
+            value = Path(value)
+        values[name] = value
+    return exp.config_type(**values)
+
+
+def describe(stored: Stored) -> str:
+    """What ``workbench info`` prints."""
+    m = stored.metrics or {}
+    lines = [f"{stored.path}: a recording of {stored.experiment} ({stored.config.get('scenario', '')}), "
+             f"{stored.config.get('runs', '?')} run(s), seed {stored.seed}",
+             f"made by:   {stored.command or '(not stored)'}",
+             f"on:        {stored.date or '(not stored)'} with workbench {stored.version}, commit {stored.git_commit}"]
+    table = m.get("estimator_table", {})
+    if table:
+        lines.append("estimators:")
+        lines += [f"  {name:24s} {e['description']} [{e['source']}; {'causal' if e['causal'] else 'not causal'}"
+                  f"{', covariances' if e['covariances'] else ''}]" for name, e in table.items()]
+    if m.get("failed"):
+        lines += ["failed:"] + [f"  {name}: {why}" for name, why in m["failed"].items()]
+    changed = {k: v for k, v in stored.config.items() if k not in ("estimators",)}
+    lines.append("config:    " + json.dumps(changed, sort_keys=True))
+    if stored.metrics is not None:
+        from workbench.experiments import REGISTRY, get
+
+        if stored.experiment in REGISTRY:
+            lines += ["", get(stored.experiment).table(stored.metrics)]
+    else:
+        lines.append("(no metrics stored: recorded before workbench stored them; replay cannot compare)")
+    return "\n".join(lines)
+
+
+def differences(stored: Any, fresh: Any, path: str = "") -> tuple[int, list[str]]:
+    """Numbers compared and the ones that differ (beyond ``TOLERANCE``, relative), as
+    ``path: stored -> fresh``; keys missing on either side count as differences."""
+    compared, out = 0, []
+    if isinstance(stored, dict) and isinstance(fresh, dict):
+        for key in sorted(set(stored) | set(fresh)):
+            if key in IGNORED:
+                continue
+            where = f"{path}.{key}" if path else key
+            if key not in fresh or key not in stored:
+                out.append(f"{where}: {'only stored' if key in stored else 'only in the replay'}")
+                continue
+            n, d = differences(stored[key], fresh[key], where)
+            compared, out = compared + n, out + d
+    elif isinstance(stored, list) and isinstance(fresh, list) and len(stored) == len(fresh):
+        for i, (a, b) in enumerate(zip(stored, fresh, strict=True)):
+            n, d = differences(a, b, f"{path}[{i}]")
+            compared, out = compared + n, out + d
+    elif isinstance(stored, (int, float)) and isinstance(fresh, (int, float)) and not isinstance(stored, bool):
+        compared = 1
+        same = (math.isnan(stored) and math.isnan(fresh)) if (math.isnan(stored) or math.isnan(fresh)) else \
+            math.isclose(stored, fresh, rel_tol=TOLERANCE, abs_tol=1e-12)
+        if not same:
+            out.append(f"{path}: {stored:.6g} -> {fresh:.6g}")
+    elif stored != fresh:
+        compared = 1
+        out.append(f"{path}: {stored!r} -> {fresh!r}")
+    return compared, out
+
+
+def replay(stored: Stored, jobs: int | None = None) -> tuple[int, list[str]]:
+    """Run the recording's experiment again from its stored config; compare every number."""
+    from workbench import api
+
+    if stored.metrics is None:
+        raise WorkbenchError(f"{stored.path} stores no metrics (recorded before workbench stored them): "
+                             "nothing to compare")
+    cfg = config_of(stored)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        res = api.run(stored.experiment, config=cfg, estimators=cfg.estimators or None, jobs=jobs)
+    return differences(stored.metrics, res.metrics)
