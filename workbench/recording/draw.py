@@ -9,8 +9,10 @@ from __future__ import annotations
 import numpy as np
 import rerun as rr
 
-PALETTE = {"truth": (230, 230, 230), "observer": (80, 160, 255), "measured": (140, 140, 140)}
-"""Colours of what is not an estimator; each estimator's colour is its row of the estimator table."""
+PALETTE = {"truth": (230, 230, 230), "truth on white": (40, 40, 40), "observer": (80, 160, 255),
+           "measured": (140, 140, 140)}
+"""Colours of what is not an estimator; each estimator's colour is its row of the estimator table.
+The truth is near-white on the maps' dark background and near-black in the (light) plots."""
 
 
 def color(name: str) -> tuple[int, int, int]:

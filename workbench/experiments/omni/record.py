@@ -19,9 +19,10 @@ import rerun as rr
 import rerun.blueprint as rrb
 
 from workbench.estimation import metrics
-from workbench.experiments.omni.evaluate import RunSummary, mc_curves, on_grid
+from workbench.experiments.omni.evaluate import RunSummary, mc_curves, on_grid, pose_errors, pose_nees
 from workbench.experiments.omni.run import RunResult
 from workbench.recording import draw
+from workbench.recording import layout as views
 
 TL = "time"
 
@@ -35,28 +36,37 @@ def _map_view(name: str, centre: tuple[float, float], height: float) -> rrb.Spat
 
 
 def blueprint(names: list[str], centre: tuple[float, float] = (40.0, 40.0), height: float = 110.0,
-              with_images: bool = False) -> rrb.Blueprint:
+              with_images: bool = False, span: tuple[float, float] = (0.0, 500.0),
+              scales: dict[str, tuple[float | None, dict[str, float]]] | None = None) -> rrb.Blueprint:
     """Maps in a grid on the left (and the round camera image, when there is one); errors,
-    sigmas, NEES and the Monte Carlo curves on the right."""
-    views = [_map_view(n, centre, height) for n in names]
+    sigmas, NEES and the Monte Carlo curves on the right, every plot on the whole run ``span``.
+    ``scales`` (view -> value-axis top and the estimators off it, :func:`views.scale`) keeps one
+    diverging estimator from flattening the others."""
+    scales = scales or {}
+
+    def plot(origin: str, name: str, unit: str = "") -> rrb.TimeSeriesView:
+        top, off = scales.get(origin, (None, {}))
+        return views.plot(origin, name + views.off_scale_note(off, unit), span, top=top)
+
+    panes = [_map_view(n, centre, height) for n in names]
     if with_images:
-        views.insert(0, rrb.Spatial2DView(origin="/camera", name="round image, detected lines"))
-    maps = rrb.Grid(*views)
+        panes.insert(0, rrb.Spatial2DView(origin="/camera", name="round image, detected lines"))
+    maps = rrb.Grid(*panes)
     one_run = rrb.Vertical(
-        rrb.TimeSeriesView(origin="/errors/position", name="position error (m)"),
-        rrb.TimeSeriesView(origin="/errors/heading", name="heading error (deg)"),
-        rrb.TimeSeriesView(origin="/nees", name="pose NEES (3 dof), 95 % band"),
+        plot("/errors/position", "position error (m)", "m"),
+        plot("/errors/heading", "heading error (deg)", "deg"),
+        plot("/nees", "pose NEES (3 dof), 95 % band"),
         name="run 0",
     )
     sigmas = rrb.Vertical(
-        rrb.TimeSeriesView(origin="/sigma/position", name="own sigma, position (m)"),
-        rrb.TimeSeriesView(origin="/sigma/heading", name="own sigma, heading (deg)"),
+        plot("/sigma/position", "own sigma, position (m)", "m"),
+        plot("/sigma/heading", "own sigma, heading (deg)", "deg"),
         name="sigmas",
     )
     mc = rrb.Vertical(
-        rrb.TimeSeriesView(origin="/monte_carlo/position", name="RMS position error over runs (m)"),
-        rrb.TimeSeriesView(origin="/monte_carlo/heading", name="RMS heading error over runs (deg)"),
-        rrb.TimeSeriesView(origin="/monte_carlo/nees", name="ANEES over runs, 95 % band"),
+        plot("/monte_carlo/position", "RMS position error over runs (m)", "m"),
+        plot("/monte_carlo/heading", "RMS heading error over runs (deg)", "deg"),
+        plot("/monte_carlo/nees", "ANEES over runs, 95 % band"),
         name="Monte Carlo",
     )
     return rrb.Blueprint(
@@ -74,7 +84,20 @@ def layout(first: RunResult) -> rrb.Blueprint:
     else:
         lo, hi = np.nanmin(d.landmarks, axis=0), np.nanmax(d.landmarks, axis=0)
         centre, height = tuple((lo + hi) / 2), 1.6 * float(max(hi - lo))
-    return blueprint(list(first.estimates), centre, height, first.images is not None)
+    grid, truth = first.grid, d.truth[first.grid]
+    position, heading, nees = {}, {}, {}
+    for name, est in first.estimates.items():
+        pose, cov = on_grid(est, grid)
+        e = pose_errors(truth, pose)
+        position[name], heading[name], nees[name] = np.hypot(e[:, 0], e[:, 1]), np.degrees(e[:, 2]), pose_nees(e, cov)
+    scales = {"/errors/position": views.scale(position), "/errors/heading": views.scale(heading),
+              "/nees": views.scale(nees)}
+    # the curves over runs diverge where run 0 does: the same estimators off their scale
+    scales["/monte_carlo/position"], scales["/monte_carlo/heading"] = scales["/errors/position"], \
+        scales["/errors/heading"]
+    scales["/monte_carlo/nees"] = scales["/nees"]
+    span = (float(d.t[grid[0]]), float(d.t[grid[-1]]))
+    return blueprint(list(first.estimates), centre, height, first.images is not None, span, scales)
 
 
 def _rays(first: RunResult, pose: np.ndarray, length: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:

@@ -28,29 +28,37 @@ from workbench.estimation.angles import to_arcmin
 from workbench.experiments.sea.evaluate import RunSummary, curves
 from workbench.experiments.sea.run import RunResult
 from workbench.recording import draw
+from workbench.recording import layout as views
 
 TL = "time"
 
 
-def blueprint(names: list[str], images: bool = False) -> rrb.Blueprint:
-    """Map on the left; angles, range and errors on the right; Monte Carlo and table in tabs."""
+def blueprint(names: list[str], images: bool = False, span: tuple[float, float] = (0.0, 72.0),
+              scene: np.ndarray | None = None) -> rrb.Blueprint:
+    """The top-down map on the left (framed on ``scene``, the observer's and the object's
+    tracks); named tabs of angles and range, errors, the curves over runs and the results on
+    the right; every plot opens on the whole run ``span``."""
     series = rrb.Vertical(
-        rrb.TimeSeriesView(origin="/series/alpha", name="azimuth alpha (arcmin)"),
-        rrb.TimeSeriesView(origin="/series/beta", name="elevation beta (arcmin)"),
-        rrb.TimeSeriesView(origin="/series/range", name="range d (m)"),
+        views.plot("/series/alpha", "azimuth alpha (arcmin)", span),
+        views.plot("/series/beta", "elevation beta (arcmin)", span),
+        views.plot("/series/range", "range d (m)", span),
+        name="angles and range",
     )
     errors = rrb.Vertical(
-        rrb.TimeSeriesView(origin="/errors/x", name="error x (m)"),
-        rrb.TimeSeriesView(origin="/errors/y", name="error y (m)"),
-        rrb.TimeSeriesView(origin="/errors/alpha", name="error alpha (arcmin)"),
-        rrb.TimeSeriesView(origin="/errors/beta", name="error beta (arcmin)"),
+        views.plot("/errors/x", "error x (m)", span),
+        views.plot("/errors/y", "error y (m)", span),
+        views.plot("/errors/alpha", "error alpha (arcmin)", span),
+        views.plot("/errors/beta", "error beta (arcmin)", span),
+        name="errors (run 0)",
     )
     mc = rrb.Vertical(
-        rrb.TimeSeriesView(origin="/monte_carlo/position_rmse", name="position RMSE over runs (m)"),
-        rrb.TimeSeriesView(origin="/monte_carlo/nees", name="NEES over runs (4 states), 95 % band"),
+        views.plot("/monte_carlo/position_rmse", "position RMSE over runs (m)", span),
+        views.plot("/monte_carlo/nees", "NEES over runs (4 states), 95 % band", span),
+        name="over runs",
     )
     tabs = [series, errors, mc, rrb.TextDocumentView(origin="/summary", name="results")]
-    left: rrb.Container | rrb.SpaceView = rrb.Spatial3DView(origin="/map", name="map (top-down, m)")
+    scene = np.zeros((1, 2)) if scene is None else scene
+    left: rrb.Container | rrb.SpaceView = views.top_down("/map", "map (top-down, m)", scene)
     if images:
         left = rrb.Vertical(
             left,
@@ -58,8 +66,8 @@ def blueprint(names: list[str], images: bool = False) -> rrb.Blueprint:
             row_shares=[1, 1],
         )
         tabs.insert(3, rrb.Vertical(
-            rrb.TimeSeriesView(origin="/images/error", name="image stage error (arcmin)"),
-            rrb.TimeSeriesView(origin="/images/detected", name="detected"),
+            views.plot("/images/error", "image stage error (arcmin)", span),
+            views.plot("/images/detected", "detected", span),
             rrb.TextLogView(origin="/camera/status", name="no detection"),
             name="image stage"))
     return rrb.Blueprint(
@@ -70,7 +78,9 @@ def blueprint(names: list[str], images: bool = False) -> rrb.Blueprint:
 
 def layout(first: RunResult) -> rrb.Blueprint:
     """The default layout of a run's recording."""
-    return blueprint(list(first.estimates), images=first.images is not None)
+    d = first.data
+    return blueprint(list(first.estimates), images=first.images is not None, span=(float(d.t[0]), float(d.t[-1])),
+                     scene=np.concatenate([d.observer, d.target[:, :2]]))
 
 
 def record(rec: rr.RecordingStream, first: RunResult, runs: list[RunSummary], table_md: str) -> None:
@@ -88,13 +98,13 @@ def record(rec: rr.RecordingStream, first: RunResult, runs: list[RunSummary], ta
     seen = np.where(d.seen[:, None], d.target[:, :2], np.nan)
     draw.segments(rec, "/map/line_of_sight", TL, t, d.observer, seen, (255, 255, 120), 0.25)
 
-    draw.scalars(rec, "/series/alpha/truth", TL, t, to_arcmin(d.alpha), "truth", draw.color("truth"))
+    draw.scalars(rec, "/series/alpha/truth", TL, t, to_arcmin(d.alpha), "truth", draw.color("truth on white"))
     draw.scalars(rec, "/series/alpha/measured", TL, t, to_arcmin(d.alpha_meas), "measured",
                  draw.color("measured"), 1.0)
-    draw.scalars(rec, "/series/beta/truth", TL, t, to_arcmin(d.beta), "truth", draw.color("truth"))
+    draw.scalars(rec, "/series/beta/truth", TL, t, to_arcmin(d.beta), "truth", draw.color("truth on white"))
     draw.scalars(rec, "/series/beta/measured", TL, t, to_arcmin(d.beta_meas), "measured",
                  draw.color("measured"), 1.0)
-    draw.scalars(rec, "/series/range/truth", TL, t, d.range, "truth", draw.color("truth"))
+    draw.scalars(rec, "/series/range/truth", TL, t, d.range, "truth", draw.color("truth on white"))
 
     for name, est in first.estimates.items():
         rgb, x = first.estimators[name].color, draw.emphasis(first.estimators[name])
