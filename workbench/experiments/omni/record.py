@@ -31,7 +31,7 @@ def _map_view(name: str, centre: tuple[float, float], height: float) -> rrb.Spat
     return rrb.Spatial3DView(
         origin="/", contents=["/world/**", f"/map/{name}/**"], name=f"{name} (top-down, m)",
         eye_controls=rrb.EyeControls3D(position=(centre[0], centre[1] - 1e-3, height),
-                                       look_target=(centre[0], centre[1], 0.0), eye_up=(0.0, 0.0, 1.0)),
+                                       look_target=(centre[0], centre[1], 0.0), eye_up=(0.0, 1.0, 0.0)),
     )
 
 
