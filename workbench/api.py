@@ -118,7 +118,7 @@ def run(experiment: str | Experiment, scenario: str | None = None, *, config: An
     stats["wall_seconds"] = time.perf_counter() - t0
     table = exp.table(stats)
     if out_path is not None:
-        with stream.recording(out_path, exp.name, cfg.to_json(), cfg.seed, exp.blueprint(first),
+        with stream.recording(out_path, exp.name, cfg.to_json(), cfg.seed, exp.blueprint(first, summaries),
                               spawn=spawn, serve=serve, metrics=stats) as rec:
             exp.record(rec, first, summaries, table)
         stats["recording"] = str(out_path)

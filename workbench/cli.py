@@ -153,6 +153,7 @@ app.command("sweep")(friendly(sweep_commands.sweep))
 app.command("sweep-report")(friendly(sweep_commands.sweep_report))
 app.command("info")(friendly(recording_commands.info))
 app.command("replay")(friendly(recording_commands.replay))
+app.command("screenshot")(friendly(recording_commands.screenshot))
 
 
 @app.command("list")

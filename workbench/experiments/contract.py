@@ -26,7 +26,7 @@ An experiment is a package ``workbench/experiments/<name>/`` with one module per
                    with ``run`` and ``failed``); ``statistics(cfg, summaries, label)``;
                    ``run_metrics(summary, cfg)`` and ``RUN_METRICS``: a run's figures (sweeps)
 ``report.py``      ``table(stats)``: the results table (markdown)
-``record.py``      ``layout(first)``: the default blueprint; ``record(rec, first, summaries,
+``record.py``      ``layout(first, summaries)``: the default blueprint; ``record(rec, first, summaries,
                    table)``: run 0 drawn from ``first`` and its evaluation ``summaries[0]``
 ``experiment.py``  ``EXPERIMENT``: an :class:`Experiment` subclass declaring the above (name,
                    description, config type, scenarios, options, data and estimate types,
@@ -494,9 +494,10 @@ class Experiment:
         """The results table, markdown (``report.table``)."""
         return self.role("report").table(stats)
 
-    def blueprint(self, first: Any) -> Any:
-        """The recording's default layout for run 0 (``record.layout``)."""
-        return self.role("record").layout(first)
+    def blueprint(self, first: Any, summaries: list[Any]) -> Any:
+        """The recording's default layout for run 0, fitted to what it will show: run 0 and its
+        evaluation ``summaries[0]``, the curves over all runs (``record.layout``)."""
+        return self.role("record").layout(first, summaries)
 
     def record(self, rec: Any, first: Any, summaries: list[Any], table: str) -> None:
         """Draw run 0 and the curves over runs (``record.record``)."""

@@ -35,11 +35,11 @@ from workbench.experiments.contract import Color, Estimator, Experiment, split_l
 
 GROUP = "workbench.estimators"
 NAME = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.-]*")
-# colours for plugins: saturated, apart from every built-in's (oranges, greens, teals, reds,
-# purples, pinks, greys), from the truth's light grey and the line of sight's pale yellow, and
-# readable on the viewer's light and dark backgrounds
-PLUGIN_COLORS: tuple[Color, ...] = ((0, 100, 255), (150, 220, 0), (165, 95, 35), (255, 0, 255),
-                                    (0, 150, 110), (120, 60, 200), (255, 200, 0), (0, 190, 255))
+# colours for plugins: saturated, apart from every built-in's (oranges, greens, cyans, reds,
+# violets, pinks, greys), from the truth's white and the line of sight's pale yellow (a yellow was
+# found too near the paper's orange in a browser review, a sky blue is too near the cyan), and readable on the
+# maps' dark and the plots' light backgrounds
+PLUGIN_COLORS: tuple[Color, ...] = ((0, 100, 255), (150, 220, 0), (255, 0, 255), (0, 150, 110), (120, 60, 200))
 
 
 def estimator(*, name: str | None = None, description: str | None = None, causal: bool = False,
@@ -69,19 +69,27 @@ def resolve(exp: Experiment, selection: Iterable[Any] | str | None) -> list[Esti
     if items and isinstance(items[0], str) and items[0].startswith("+"):
         items = [*exp.default_estimators, items[0][1:], *items[1:]]
     out: list[Estimator] = []
-    plugins = 0
     for item in items:
-        est = one(exp, item, PLUGIN_COLORS[plugins % len(PLUGIN_COLORS)])
-        plugins += not est.builtin
+        est = one(exp, item)
         if est.name in {e.name for e in out}:
             raise WorkbenchError(f"estimator {est.name!r} is selected twice")
+        taken = {e.color for e in out}
+        if not est.builtin and est.color in taken:  # two plugins on one colour: the next free one
+            free = [c for c in PLUGIN_COLORS if c not in taken]
+            est = dataclasses.replace(est, color=free[0] if free else est.color)
         out.append(est)
     if not out:
         raise WorkbenchError("no estimator selected")
     return out
 
 
-def one(exp: Experiment, item: Any, color: Color = PLUGIN_COLORS[0]) -> Estimator:
+def plugin_color(name: str) -> Color:
+    """A plugin's colour by its name (the same in every run, experiment and recording that has
+    it, whatever else is selected): one of :data:`PLUGIN_COLORS`, chosen by a stable hash."""
+    return PLUGIN_COLORS[hashlib.sha1(name.encode()).digest()[0] % len(PLUGIN_COLORS)]
+
+
+def one(exp: Experiment, item: Any, color: Color | None = None) -> Estimator:
     """One item of a selection as an :class:`Estimator` of ``exp``."""
     if isinstance(item, Estimator):
         return item if item.experiment else dataclasses.replace(item, experiment=exp.name)
@@ -115,7 +123,7 @@ def one(exp: Experiment, item: Any, color: Color = PLUGIN_COLORS[0]) -> Estimato
 
 
 def from_function(exp: Experiment, fn: Any, name: str | None, ref: str | None, source: str,
-                  color: Color) -> Estimator:
+                  color: Color | None = None) -> Estimator:
     """An :class:`Estimator` from a plugin function and what :func:`estimator` attached to it."""
     if not callable(fn):
         raise WorkbenchError(f"estimator {source} is not a function")
@@ -125,7 +133,8 @@ def from_function(exp: Experiment, fn: Any, name: str | None, ref: str | None, s
         raise WorkbenchError(f"estimator name {name!r}: use letters, digits and . _ - only")
     doc = (inspect.getdoc(fn) or "").strip().splitlines()
     description = meta.get("description") or (doc[0] if doc else f"{name} (a plugin)")
-    return Estimator(name, fn, tuple(meta.get("color") or color), description, bool(meta.get("causal", False)),
+    rgb = tuple(meta.get("color") or color or plugin_color(name))
+    return Estimator(name, fn, rgb, description, bool(meta.get("causal", False)),
                      bool(meta.get("covariances", False)), exp.name, source, ref)
 
 

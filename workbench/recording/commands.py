@@ -37,3 +37,30 @@ def replay(file: Path = typer.Argument(..., help="A .rrd recording."),
         typer.echo("\n".join(f"  {line}" for line in diff[:25]) + ("\n  ..." if len(diff) > 25 else ""))
         raise typer.Exit(DIFFERS)
     typer.echo(f"reproduces: all {compared} numbers equal to {provenance.TOLERANCE:g} (relative), timings aside")
+
+
+def screenshot(files: list[Path] = typer.Argument(..., help="One or more .rrd recordings."),
+               out: Path = typer.Option(Path("screenshots"), help="Folder for the PNGs."),
+               views: str = typer.Option("all", help="all: the default view and every tab; default: only the first."),
+               force: bool = typer.Option(False, help="Overwrite existing PNGs.")) -> None:
+    """Each recording as it opens in the Rerun web viewer (headless Chromium on loopback): a PNG of
+    the default view and of every tab brought to the front, <name>.<view>.png."""
+    import tempfile
+
+    from workbench.errors import WorkbenchError
+    from workbench.recording import browser, provenance
+
+    if views not in ("all", "default"):
+        raise WorkbenchError(f"--views must be all or default, not {views!r}")
+    for f in files:
+        provenance.read(f)  # a one-line error for anything that is not a workbench recording
+    out.mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryDirectory() as tmp, browser.Browser() as b:
+        for f in files:
+            shots = browser.tab_blueprints(f, Path(tmp))
+            for name, rbl in shots if views == "all" else shots[:1]:
+                target = out / f"{f.stem}.{browser.slug(name)}.png"
+                if target.exists() and not force:
+                    raise WorkbenchError(f"{target} exists; pass --force to overwrite it")
+                browser.save_png(target, b.shoot(f, rbl))
+                typer.echo(f"{target}")

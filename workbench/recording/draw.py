@@ -19,6 +19,27 @@ def color(name: str) -> tuple[int, int, int]:
     return PALETTE[name]
 
 
+NAMED = {"red": (230, 70, 70), "orange": (255, 170, 0), "yellow": (255, 230, 60), "green": (60, 200, 90),
+         "cyan": (0, 210, 200), "blue": (0, 100, 255), "violet": (190, 90, 240), "pink": (255, 110, 200),
+         "brown": (165, 95, 35), "grey": (150, 150, 150), "white": (235, 235, 235), "black": (30, 30, 30),
+         "lime": (150, 220, 0), "magenta": (255, 0, 255), "teal": (0, 150, 110), "purple": (120, 60, 200),
+         "sky blue": (0, 190, 255)}
+"""Colour words for the recordings' "how to read this" notes (the viewer shows no colour in text)."""
+
+
+def colour_name(rgb: tuple[int, int, int]) -> str:
+    """The nearest colour word of :data:`NAMED` (its hex code where none is near)."""
+    name, ref = min(NAMED.items(), key=lambda kv: sum((a - b) ** 2 for a, b in zip(kv[1], rgb, strict=True)))
+    near = sum((a - b) ** 2 for a, b in zip(ref, rgb, strict=True)) <= 60**2
+    return name if near else "#{:02x}{:02x}{:02x}".format(*rgb)
+
+
+def colour_key(estimators: dict) -> str:
+    """``ekf red, gtsam violet, ...``: each estimator's colour in words (a plugin's marked)."""
+    return ", ".join(f"{n} {colour_name(e.color)}" + ("" if e.builtin else " (yours, drawn wider)")
+                     for n, e in estimators.items())
+
+
 def emphasis(estimator) -> float:
     """How much wider a line (larger a marker) an estimator gets: a researcher's own plugin,
     what they came to look at, is drawn 2.5 times as wide as the built-ins it sits among (at
@@ -47,12 +68,14 @@ def _xyz(xy: np.ndarray, z: float = 0.0) -> np.ndarray:
     return np.concatenate([xy, np.full(xy.shape[:-1] + (1,), z)], axis=-1)
 
 
-def track(rec: rr.RecordingStream, path: str, xy: np.ndarray, rgb, radius: float = 0.6) -> None:
-    """A whole path as one static line strip (segments split at NaNs)."""
+def track(rec: rr.RecordingStream, path: str, xy: np.ndarray, rgb, radius: float = 0.6, z: float = 0.0) -> None:
+    """A whole path as one static line strip (segments split at NaNs), at height ``z`` (a map
+    seen from above shows what is higher on top: the truth over the estimates). A negative
+    ``radius`` is in UI points (the same width at any zoom)."""
     xy = np.asarray(xy, float)
     ok = np.isfinite(xy).all(axis=1)
     strips, cur = [], []
-    for p, good in zip(_xyz(xy), ok, strict=True):
+    for p, good in zip(_xyz(xy, z), ok, strict=True):
         if good:
             cur.append(p)
         elif cur:
@@ -64,8 +87,8 @@ def track(rec: rr.RecordingStream, path: str, xy: np.ndarray, rgb, radius: float
 
 
 def moving_point(rec: rr.RecordingStream, path: str, timeline: str, t: np.ndarray, xy: np.ndarray,
-                 rgb, radius: float = 3.0, label: str | None = None) -> int:
-    """One point per step (NaN steps skipped)."""
+                 rgb, radius: float = 3.0, label: str | None = None, z: float = 0.0) -> int:
+    """One point per step (NaN steps skipped), at height ``z``."""
     ok = np.isfinite(xy).all(axis=1)
     if label:
         rec.log(path, rr.Points3D.from_fields(colors=[rgb], radii=[radius], labels=[label],
@@ -74,16 +97,16 @@ def moving_point(rec: rr.RecordingStream, path: str, timeline: str, t: np.ndarra
         rec.log(path, rr.Points3D.from_fields(colors=[rgb], radii=[radius]), static=True)
     if ok.any():
         rec.send_columns(path, indexes=[times(timeline, t[ok])],
-                         columns=rr.Points3D.columns(positions=_xyz(xy[ok])))
+                         columns=rr.Points3D.columns(positions=_xyz(xy[ok], z)))
     return int(ok.sum())
 
 
 def segments(rec: rr.RecordingStream, path: str, timeline: str, t: np.ndarray, start: np.ndarray,
-             end: np.ndarray, rgb, radius: float = 0.3) -> int:
-    """One line segment per step (e.g. the line of sight)."""
+             end: np.ndarray, rgb, radius: float = 0.3, z: float = 0.0) -> int:
+    """One line segment per step (e.g. the line of sight), at height ``z``."""
     ok = np.isfinite(start).all(axis=1) & np.isfinite(end).all(axis=1)
     rec.log(path, rr.LineStrips3D.from_fields(colors=[rgb], radii=[radius]), static=True)
-    strips = np.stack([_xyz(start[ok]), _xyz(end[ok])], axis=1)
+    strips = np.stack([_xyz(start[ok], z), _xyz(end[ok], z)], axis=1)
     if ok.any():
         rec.send_columns(path, indexes=[times(timeline, t[ok])],
                          columns=rr.LineStrips3D.columns(strips=list(strips)))
@@ -168,13 +191,13 @@ def segment_sets(rec: rr.RecordingStream, path: str, timeline: str, t: np.ndarra
 
 
 def poses(rec: rr.RecordingStream, path: str, timeline: str, t: np.ndarray, pose: np.ndarray, rgb,
-          length: float = 2.0) -> int:
-    """A vehicle per step: an arrow from ``(x, y)`` along the heading ``pose (T, 3)``."""
+          length: float = 2.0, z: float = 0.0) -> int:
+    """A vehicle per step: an arrow from ``(x, y)`` along the heading ``pose (T, 3)``, at height ``z``."""
     ok = np.isfinite(pose).all(axis=1)
     p = pose[ok]
     rec.log(path, rr.Arrows3D.from_fields(colors=[rgb], radii=[0.15 * length / 2]), static=True)
     if ok.any():
         vec = np.stack([length * np.cos(p[:, 2]), length * np.sin(p[:, 2]), np.zeros(len(p))], axis=1)
         rec.send_columns(path, indexes=[times(timeline, t[ok])],
-                         columns=rr.Arrows3D.columns(origins=_xyz(p[:, :2]), vectors=vec))
+                         columns=rr.Arrows3D.columns(origins=_xyz(p[:, :2], z), vectors=vec))
     return int(ok.sum())

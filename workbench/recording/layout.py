@@ -1,8 +1,16 @@
 """Blueprint pieces every experiment's default layout is made of, so they read at first sight:
-time plots that open on the whole run with the legend in a corner, maps truly top-down over
-the whole scene, and an axis that one diverging estimator does not set for all the others."""
+time plots that open on the whole run with the legend in the corner where it hides the least
+data, maps truly top-down over the whole scene, and a value axis that one diverging estimator
+does not set for all the others.
+
+A plot is declared with the curves it will show (:class:`Curves`: name -> values on the view's
+time axis), so its value axis, its off-the-scale note and its legend's corner are computed from
+the very numbers the recording draws.
+"""
 
 from __future__ import annotations
+
+from dataclasses import dataclass, field
 
 import numpy as np
 import rerun.blueprint as rrb
@@ -11,38 +19,119 @@ MAP_BACKGROUND = (24, 28, 34)
 """The maps' background: the estimators' colours and the truth's near-white read on it."""
 OFF_SCALE = 10.0
 """An estimator whose largest value is this many times the others' median largest is off the scale."""
+LEGEND_BOX = (0.3, 0.45)
+"""The part of a plot's width and height a legend of a handful of rows covers (measured in the web
+viewer: 6-9 rows in plots 200-260 px high, the legend 120-190 px high and 90-110 px wide)."""
+CORNERS = {rrb.Corner2D.RightTop: (1, 1), rrb.Corner2D.LeftTop: (0, 1), rrb.Corner2D.RightBottom: (1, 0),
+           rrb.Corner2D.LeftBottom: (0, 0)}
 
 
-def plot(origin: str, name: str, span: tuple[float, float], timeline: str = "time",
-         top: float | None = None, bottom: float | None = None) -> rrb.TimeSeriesView:
-    """A time plot opening on the whole run ``span`` (s), the legend at the top right; with
-    ``top``/``bottom`` its value axis starts at that range (the user can still zoom out)."""
-    axis_y = None
-    if top is not None:
-        axis_y = rrb.ScalarAxis(range=(bottom if bottom is not None else 0.0, top), zoom_lock=False)
+@dataclass
+class Curves:
+    """What one time plot shows: ``t`` (s) and, by series name, its values on ``t``
+    (``float`` arrays, NaN where there is none); ``unit`` for the off-the-scale note;
+    ``fixed``: names that are reference lines (a consistency band), never off the scale;
+    ``labels``: a series' name in the legend where it is not its key (the key names the entity)."""
+
+    t: np.ndarray
+    series: dict[str, np.ndarray] = field(default_factory=dict)
+    unit: str = ""
+    fixed: tuple[str, ...] = ()
+    labels: dict[str, str] = field(default_factory=dict)
+
+    def label(self, key: str) -> str:
+        return self.labels.get(key, key)
+
+
+def plot(origin: str, name: str, span: tuple[float, float], curves: Curves | None = None,
+         legend: bool = True, timeline: str = "time") -> rrb.TimeSeriesView:
+    """A time plot opening on the whole run ``span`` (s). With ``curves``: a value axis that no
+    diverging series sets (:func:`scale`; the ones left above it named in the view's title), and
+    the legend in the corner where it hides the fewest points (:func:`legend_corner`); without,
+    the viewer's own axis and the legend at the top right. ``legend=False`` hides it (a plot
+    below another that already names the same colours)."""
+    axis_y, corner, title = None, rrb.Corner2D.RightTop, name
+    if curves is not None:
+        top, off = scale({n: v for n, v in curves.series.items() if n not in curves.fixed})
+        values = [v for n, v in curves.series.items() if n not in off]
+        shown = np.concatenate([np.ravel(v) for v in values]) if values else np.zeros(0)
+        shown = shown[np.isfinite(shown)]
+        if top is not None:
+            bottom = min(0.0, float(shown.min())) if shown.size else 0.0
+            axis_y = rrb.ScalarAxis(range=(bottom, top), zoom_lock=False)
+        title = name + off_scale_note(off, curves.unit)
+        corner = legend_corner(curves.t, list(curves.series.values()), span, top)
     view_range = rrb.TimeRange(start=rrb.TimeRangeBoundary.absolute(seconds=float(span[0])),
                                end=rrb.TimeRangeBoundary.absolute(seconds=float(span[1])))
-    return rrb.TimeSeriesView(origin=origin, name=name, axis_x=rrb.TimeAxis(view_range=view_range),
-                              axis_y=axis_y, plot_legend=rrb.PlotLegend(corner=rrb.Corner2D.RightTop))
+    return rrb.TimeSeriesView(origin=origin, name=title, axis_x=rrb.TimeAxis(view_range=view_range),
+                              axis_y=axis_y, plot_legend=rrb.PlotLegend(corner=corner, visible=legend))
 
 
-def top_down(origin: str, name: str, xy: np.ndarray, contents: list[str] | None = None, margin: float = 1.25
-             ) -> rrb.Spatial3DView:
+def legend_corner(t: np.ndarray, values: list[np.ndarray], span: tuple[float, float],
+                  top: float | None = None) -> rrb.Corner2D:
+    """The corner whose legend-sized box (:data:`LEGEND_BOX`) holds the fewest points of the
+    curves as the plot shows them (time over ``span``, values from their least to ``top`` or their
+    largest); ties go to the top right, then the top left."""
+    t = np.asarray(t, float)
+    pts = [(t, np.asarray(v, float)) for v in values if np.shape(v) == t.shape]
+    if not pts:
+        return rrb.Corner2D.RightTop
+    x = np.concatenate([(a - span[0]) / max(span[1] - span[0], 1e-12) for a, _ in pts])
+    y = np.concatenate([v for _, v in pts])
+    ok = np.isfinite(x) & np.isfinite(y) & (x >= 0) & (x <= 1)
+    x, y = x[ok], y[ok]
+    if not len(y):
+        return rrb.Corner2D.RightTop
+    lo, hi = float(y.min()), float(top if top is not None else y.max())
+    y = (y - lo) / max(hi - lo, 1e-12)
+    w, h = LEGEND_BOX
+    counts = {}
+    for corner, (right, upper) in CORNERS.items():
+        in_x = x >= 1 - w if right else x <= w
+        in_y = (y >= 1 - h) & (y <= 1) if upper else y <= h
+        counts[corner] = int(np.count_nonzero(in_x & in_y))
+    return min(CORNERS, key=lambda c: (counts[c], list(CORNERS).index(c)))
+
+
+def top_down(origin: str, name: str, xy: np.ndarray, contents: list[str] | None = None, margin: float = 1.15,
+             aspect: float = 1.0) -> rrb.Spatial3DView:
     """A 3D view looking straight down (x east to the right, y north up) on everything in
     ``xy (N, 2)``, north up: the eye straight above the centre with its up along +y (with up
-    along +z, ill-defined looking straight down, the web viewer showed north at the bottom)."""
-    xy = np.asarray(xy, float).reshape(-1, 2)
-    xy = xy[np.isfinite(xy).all(axis=1)]
-    lo, hi = (xy.min(axis=0), xy.max(axis=0)) if len(xy) else (np.zeros(2), np.ones(2))
-    centre = (lo + hi) / 2
-    # the viewer's field of view sees about 0.7 times the height across (measured in a browser
-    # on a 900 x 730 px view): frame the larger side with a margin
-    height = margin * max(float(np.max(hi - lo)), 1.0) / 0.7
+    along +z, ill-defined looking straight down, the web viewer showed north at the bottom),
+    at the height that frames the scene with ``margin`` in a view ``aspect`` times as wide as
+    high (:func:`_frame`)."""
+    centre, height = _frame(xy, margin, aspect)
     kw = {"contents": contents} if contents is not None else {}
     return rrb.Spatial3DView(
         origin=origin, name=name, background=MAP_BACKGROUND, **kw,
         eye_controls=rrb.EyeControls3D(position=(float(centre[0]), float(centre[1]) - 1e-3, height),
                                        look_target=(float(centre[0]), float(centre[1]), 0.0), eye_up=(0.0, 1.0, 0.0)))
+
+
+VISIBLE_HEIGHT = 1.02
+"""The ground height a 3D view shows, per metre of the eye's height over it (its vertical field of
+view is fixed; measured in the web viewer: a 100 m square framed from 143 m filled 615 of 906 px and
+301 of 440 px of two views of different widths)."""
+
+
+def _frame(xy: np.ndarray, margin: float = 1.15, aspect: float = 1.0) -> tuple[np.ndarray, float]:
+    """The centre of the points ``xy (N, 2)`` and the eye height that shows all of them, with
+    ``margin``, in a view ``aspect`` times as wide as high (an aspect under the view's own only
+    leaves more room at the sides)."""
+    xy = np.asarray(xy, float).reshape(-1, 2)
+    xy = xy[np.isfinite(xy).all(axis=1)]
+    lo, hi = (xy.min(axis=0), xy.max(axis=0)) if len(xy) else (np.zeros(2), np.ones(2))
+    extent = max(float(hi[0] - lo[0]) / aspect, float(hi[1] - lo[1]), 1.0)
+    return (lo + hi) / 2, margin * extent / VISIBLE_HEIGHT
+
+
+def on_top(xy: np.ndarray) -> float:
+    """The height at which to draw what must show over the rest of a top-down map of ``xy``
+    (the truth over the estimates): 2 % of the eye's height. The viewer draws the higher of two
+    overlapping lines on top only from about that much (measured in a browser: at 0.1 % the lower
+    line still covered the higher); the perspective shifts it by 2 % of its distance from the
+    centre, under a line's width at the framing of :func:`top_down`."""
+    return 0.02 * _frame(xy)[1]
 
 
 def scale(series: dict[str, np.ndarray]) -> tuple[float | None, dict[str, float]]:
@@ -61,4 +150,4 @@ def scale(series: dict[str, np.ndarray]) -> tuple[float | None, dict[str, float]
 
 def off_scale_note(off: dict[str, float], unit: str) -> str:
     """``"; ekf-paper off the scale, up to 3088 m"`` for a view's name."""
-    return "".join(f"; {n} off the scale, up to {p:.3g} {unit}" for n, p in off.items())
+    return "".join(f"; {n} off the scale, up to {p:.3g} {unit}".rstrip() for n, p in off.items())

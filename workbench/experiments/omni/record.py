@@ -19,7 +19,7 @@ import rerun as rr
 import rerun.blueprint as rrb
 
 from workbench.estimation import metrics
-from workbench.experiments.omni.evaluate import RunSummary, mc_curves, on_grid, pose_errors, pose_nees
+from workbench.experiments.omni.evaluate import RunSummary, mc_curves, on_grid
 from workbench.experiments.omni.run import RunResult
 from workbench.recording import draw
 from workbench.recording import layout as views
@@ -27,77 +27,88 @@ from workbench.recording import layout as views
 TL = "time"
 
 
-def _map_view(name: str, centre: tuple[float, float], height: float) -> rrb.Spatial3DView:
-    return rrb.Spatial3DView(
-        origin="/", contents=["/world/**", f"/map/{name}/**"], name=f"{name} (top-down, m)",
-        eye_controls=rrb.EyeControls3D(position=(centre[0], centre[1] - 1e-3, height),
-                                       look_target=(centre[0], centre[1], 0.0), eye_up=(0.0, 1.0, 0.0)),
-    )
+def plots(first: RunResult, runs: list[RunSummary]) -> dict[str, views.Curves]:
+    """Every time plot's curves, by view origin: run 0's errors, own sigmas and NEES (with the
+    one-run 95 % band), and the curves over runs (with the band for that many runs). The
+    blueprint's axes and legends and the drawn series both come from these."""
+    zero = runs[0]
+    t = zero.t
+    one, many = metrics.chi2_band(3, 1), metrics.chi2_band(3, len(runs))
+    band = {"band_lo": "95 % low", "band_hi": "95 % high"}
+
+    def curves(values: dict[str, np.ndarray], unit: str = "", lohi: tuple[float, float] | None = None
+               ) -> views.Curves:
+        c = views.Curves(t, dict(values), unit)
+        if lohi is not None:
+            c.series.update(band_lo=np.full_like(t, lohi[0]), band_hi=np.full_like(t, lohi[1]))
+            c.fixed, c.labels = tuple(band), band
+        return c
+
+    e, s = zero.errors, zero.sigmas
+    mc = mc_curves(runs)
+    return {
+        "/errors/position": curves({n: np.hypot(v[:, 0], v[:, 1]) for n, v in e.items()}, "m"),
+        "/errors/heading": curves({n: np.degrees(v[:, 2]) for n, v in e.items()}, "deg"),
+        "/nees": curves(dict(zero.nees), "", one),
+        "/sigma/position": curves({n: np.hypot(v[:, 0], v[:, 1]) for n, v in s.items()}, "m"),
+        "/sigma/heading": curves({n: np.degrees(v[:, 2]) for n, v in s.items()}, "deg"),
+        "/monte_carlo/position": curves({n: c["position"] for n, c in mc.items()}, "m"),
+        "/monte_carlo/heading": curves({n: c["heading"] for n, c in mc.items()}, "deg"),
+        "/monte_carlo/nees": curves({n: c["nees"] for n, c in mc.items()}, "", many),
+    }
 
 
-def blueprint(names: list[str], centre: tuple[float, float] = (40.0, 40.0), height: float = 110.0,
-              with_images: bool = False, span: tuple[float, float] = (0.0, 500.0),
-              scales: dict[str, tuple[float | None, dict[str, float]]] | None = None) -> rrb.Blueprint:
-    """Maps in a grid on the left (and the round camera image, when there is one); errors,
-    sigmas, NEES and the Monte Carlo curves on the right, every plot on the whole run ``span``.
-    ``scales`` (view -> value-axis top and the estimators off it, :func:`views.scale`) keeps one
-    diverging estimator from flattening the others."""
-    scales = scales or {}
+def blueprint(names: list[str], scene: np.ndarray, curves: dict[str, views.Curves], with_images: bool = False,
+              span: tuple[float, float] = (0.0, 500.0)) -> rrb.Blueprint:
+    """Maps in a grid on the left, each top-down over ``scene`` (points, m), one per estimator
+    (and the round camera image, when there is one); errors, sigmas, NEES and the Monte Carlo
+    curves on the right in named tabs, every plot on the whole run ``span`` with its axis and
+    legend fitted to its ``curves`` (one diverging estimator does not flatten the others). The
+    legend is in the first plot of each tab: the colours are the same below it."""
 
-    def plot(origin: str, name: str, unit: str = "") -> rrb.TimeSeriesView:
-        top, off = scales.get(origin, (None, {}))
-        return views.plot(origin, name + views.off_scale_note(off, unit), span, top=top)
+    def plot(origin: str, name: str, legend: bool = True) -> rrb.TimeSeriesView:
+        return views.plot(origin, name, span, curves.get(origin), legend=legend)
 
-    panes = [_map_view(n, centre, height) for n in names]
+    panes = [views.top_down("/", f"{n} (top-down, m)", scene, contents=["/world/**", f"/map/{n}/**"])
+             for n in names]
     if with_images:
         panes.insert(0, rrb.Spatial2DView(origin="/camera", name="round image, detected lines"))
-    maps = rrb.Grid(*panes)
+    maps = rrb.Grid(*panes, name="maps")
     one_run = rrb.Vertical(
-        plot("/errors/position", "position error (m)", "m"),
-        plot("/errors/heading", "heading error (deg)", "deg"),
-        plot("/nees", "pose NEES (3 dof), 95 % band"),
+        plot("/errors/position", "position error (m)"),
+        plot("/errors/heading", "heading error (deg)", legend=False),
+        plot("/nees", "pose NEES (3 dof), grey: 95 % band", legend=False),
         name="run 0",
     )
     sigmas = rrb.Vertical(
-        plot("/sigma/position", "own sigma, position (m)", "m"),
-        plot("/sigma/heading", "own sigma, heading (deg)", "deg"),
-        name="sigmas",
+        plot("/sigma/position", "own sigma, position (m)"),
+        plot("/sigma/heading", "own sigma, heading (deg)", legend=False),
+        name="own sigmas (run 0)",
     )
     mc = rrb.Vertical(
-        plot("/monte_carlo/position", "RMS position error over runs (m)", "m"),
-        plot("/monte_carlo/heading", "RMS heading error over runs (deg)", "deg"),
-        plot("/monte_carlo/nees", "ANEES over runs, 95 % band"),
-        name="Monte Carlo",
+        plot("/monte_carlo/position", "RMS position error over runs (m)"),
+        plot("/monte_carlo/heading", "RMS heading error over runs (deg)", legend=False),
+        plot("/monte_carlo/nees", "ANEES over runs, grey: 95 % band", legend=False),
+        name="over runs",
     )
     return rrb.Blueprint(
-        rrb.Horizontal(maps, rrb.Tabs(one_run, sigmas, mc, rrb.TextDocumentView(origin="/summary", name="results")),
-                       column_shares=[3, 2]),
+        rrb.Horizontal(maps, rrb.Tabs(one_run, sigmas, mc, rrb.TextDocumentView(origin="/summary", name="results"),
+                                      name="plots"), column_shares=[3, 2]),
         collapse_panels=True,
     )
 
 
-def layout(first: RunResult) -> rrb.Blueprint:
-    """The default layout: maps framed on the walls (the simulation) or the landmarks (MRCLAM)."""
+def layout(first: RunResult, runs: list[RunSummary]) -> rrb.Blueprint:
+    """The default layout: maps framed on the walls (the simulation) or the landmarks (MRCLAM)
+    and the true path; the plots fitted to their curves."""
+    span = (float(runs[0].t[0]), float(runs[0].t[-1]))
+    return blueprint(list(first.estimates), scene(first), plots(first, runs), first.images is not None, span)
+
+
+def scene(first: RunResult) -> np.ndarray:
+    """What the maps frame: the walls (the simulation) or the landmarks (MRCLAM), and the true path."""
     d = first.data
-    if d.walls is not None:
-        centre, height = tuple(d.walls.mean(axis=0)), 1.4 * float(d.walls.max() - d.walls.min())
-    else:
-        lo, hi = np.nanmin(d.landmarks, axis=0), np.nanmax(d.landmarks, axis=0)
-        centre, height = tuple((lo + hi) / 2), 1.6 * float(max(hi - lo))
-    grid, truth = first.grid, d.truth[first.grid]
-    position, heading, nees = {}, {}, {}
-    for name, est in first.estimates.items():
-        pose, cov = on_grid(est, grid)
-        e = pose_errors(truth, pose)
-        position[name], heading[name], nees[name] = np.hypot(e[:, 0], e[:, 1]), np.degrees(e[:, 2]), pose_nees(e, cov)
-    scales = {"/errors/position": views.scale(position), "/errors/heading": views.scale(heading),
-              "/nees": views.scale(nees)}
-    # the curves over runs diverge where run 0 does: the same estimators off their scale
-    scales["/monte_carlo/position"], scales["/monte_carlo/heading"] = scales["/errors/position"], \
-        scales["/errors/heading"]
-    scales["/monte_carlo/nees"] = scales["/nees"]
-    span = (float(d.t[grid[0]]), float(d.t[grid[-1]]))
-    return blueprint(list(first.estimates), centre, height, first.images is not None, span, scales)
+    return np.concatenate([d.walls if d.walls is not None else d.landmarks, d.truth[first.grid, :2]])
 
 
 def _rays(first: RunResult, pose: np.ndarray, length: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -138,7 +149,6 @@ def record(rec: rr.RecordingStream, first: RunResult, runs: list[RunSummary], ta
     """Log run 0 in full (``runs[0]`` is its evaluation), the Monte Carlo curves over all
     runs, and the results table."""
     d, grid = first.data, first.grid
-    zero = runs[0]
     t = d.t[grid]
     truth = d.truth[grid]
     rec.log("/world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
@@ -149,15 +159,16 @@ def record(rec: rr.RecordingStream, first: RunResult, runs: list[RunSummary], ta
                                             colors=[draw.color("truth")], radii=[0.25],
                                             labels=[str(i) for i in d.landmark_ids], show_labels=False),
             static=True)
-    draw.track(rec, "/world/truth/path", truth[:, :2], draw.color("truth"), 0.06)
-    draw.poses(rec, "/world/truth/vehicle", TL, t, truth, draw.color("truth"))
+    # seen from above, what is higher is drawn on top: the truth, thin, over the estimate, wider
+    top = views.on_top(scene(first))
+    draw.track(rec, "/world/truth/path", truth[:, :2], draw.color("truth"), -0.6, z=top)
+    draw.poses(rec, "/world/truth/vehicle", TL, t, truth, draw.color("truth"), z=top)
     ray_len = float(min(d.max_range, 30.0)) if np.isfinite(d.max_range) else 10.0
-    band1 = metrics.chi2_band(3, 1)
     for name, est in first.estimates.items():
         rgb, x = first.estimators[name].color, draw.emphasis(first.estimators[name])
-        base, w = f"/map/{name}", 1.5 * x
+        base = f"/map/{name}"
         pose, cov = on_grid(est, grid)
-        draw.track(rec, f"{base}/path", pose[:, :2], rgb, 0.08 * x)
+        draw.track(rec, f"{base}/path", pose[:, :2], rgb, -1.25 * x)
         draw.poses(rec, f"{base}/vehicle", TL, t, pose, rgb)
         draw.covariance_ellipses(rec, f"{base}/pose_ellipse", TL, t, pose[:, :2], cov[:, :2, :2], rgb)
         if len(est.map_steps):
@@ -171,29 +182,38 @@ def record(rec: rr.RecordingStream, first: RunResult, runs: list[RunSummary], ta
         if est.attempts:
             pt, clouds = _pending(first, est.attempts)
             draw.point_sets(rec, f"{base}/pending", TL, pt, clouds, (255, 140, 0), 0.12, 0.1)
-        e, s = zero.errors[name], zero.sigmas[name]
-        draw.scalars(rec, f"/errors/position/{name}", TL, t, np.hypot(e[:, 0], e[:, 1]), name, rgb, w)
-        draw.scalars(rec, f"/errors/heading/{name}", TL, t, np.degrees(e[:, 2]), name, rgb, w)
-        draw.scalars(rec, f"/sigma/position/{name}", TL, t, np.hypot(s[:, 0], s[:, 1]), name, rgb, w)
-        draw.scalars(rec, f"/sigma/heading/{name}", TL, t, np.degrees(s[:, 2]), name, rgb, w)
-        draw.scalars(rec, f"/nees/{name}", TL, t, zero.nees[name], name, rgb, w)
-    grey = (150, 150, 150)
-    draw.scalars(rec, "/nees/band_lo", TL, t, np.full_like(t, band1[0]), "95 % low", grey, 1.0)
-    draw.scalars(rec, "/nees/band_hi", TL, t, np.full_like(t, band1[1]), "95 % high", grey, 1.0)
-
-    curves = mc_curves(runs)
-    mt = runs[0].t
-    for name, c in curves.items():
-        rgb, w = first.estimators[name].color, 1.5 * draw.emphasis(first.estimators[name])
-        draw.scalars(rec, f"/monte_carlo/position/{name}", TL, mt, c["position"], name, rgb, w)
-        draw.scalars(rec, f"/monte_carlo/heading/{name}", TL, mt, c["heading"], name, rgb, w)
-        draw.scalars(rec, f"/monte_carlo/nees/{name}", TL, mt, c["nees"], name, rgb, w)
-    lo, hi = metrics.chi2_band(3, len(runs))
-    draw.scalars(rec, "/monte_carlo/nees/band_lo", TL, mt, np.full_like(mt, lo), "95 % low", grey, 1.0)
-    draw.scalars(rec, "/monte_carlo/nees/band_hi", TL, mt, np.full_like(mt, hi), "95 % high", grey, 1.0)
+    for origin, c in plots(first, runs).items():
+        for key, values in c.series.items():
+            est = first.estimators.get(key)
+            rgb, w = (est.color, 1.5 * draw.emphasis(est)) if est is not None else ((150, 150, 150), 1.0)
+            draw.scalars(rec, f"{origin}/{key}", TL, c.t, values, c.label(key), rgb, w)
     if first.images is not None and first.images.frames:
         _images(rec, first)
-    rec.log("/summary", rr.TextDocument(table_md, media_type=rr.MediaType.MARKDOWN), static=True)
+    text = table_md + "\n\n" + how_to_read(first, len(runs))
+    rec.log("/summary", rr.TextDocument(text, media_type=rr.MediaType.MARKDOWN), static=True)
+
+
+def how_to_read(first: RunResult, runs: int) -> str:
+    """The note under the results table: what each view shows and how to read it."""
+    one, many = metrics.chi2_band(3, 1), metrics.chi2_band(3, runs)
+    shown = {n: e for n, e in first.estimators.items() if n in first.estimates}
+    lines = [
+        "**How to read this recording** (run 0 drawn in full; scrub the `time` timeline, seconds)",
+        "",
+        f"- colours: {draw.colour_key(shown)}; the truth white.",
+        "- maps, top-down (x east, y north, m), one per estimator, on the same world: walls grey, the true "
+        "landmarks and path white; the estimator's path, pose and 95 % pose ellipse, its landmarks with their "
+        "95 % ellipses, the bearings of the step as yellow rays, and (the filters) the unscented-transform "
+        "sigma points of each landmark initialisation try in orange.",
+        f"- run 0: position and heading error, and the pose NEES (3 dof) with its one-run 95 % band "
+        f"({one[0]:.2f}-{one[1]:.2f}); own sigmas: the standard deviations each estimator claims.",
+        f"- over runs ({runs} runs): RMS position and heading error at each step, and the ANEES with its 95 % band "
+        f"({many[0]:.2f}-{many[1]:.2f}): inside it the covariance is consistent with the errors, above it the "
+        "estimator is overconfident.",
+        "- a plot's title names an estimator that is off its scale (its own values would flatten the others); "
+        "the legend is in the first plot of each tab, the colours are the same below it.",
+    ]
+    return "\n".join(lines)
 
 
 def _images(rec: rr.RecordingStream, first: RunResult) -> None:

@@ -31,29 +31,69 @@ from workbench.recording import draw
 from workbench.recording import layout as views
 
 TL = "time"
+GREY = (150, 150, 150)
+SERIES = {"truth": draw.color("truth on white"), "measured": draw.color("measured")}
+"""What is not an estimator in the plots; the bands are grey."""
 
 
-def blueprint(names: list[str], images: bool = False, span: tuple[float, float] = (0.0, 72.0),
+def plots(first: RunResult, runs: list[RunSummary]) -> dict[str, views.Curves]:
+    """Every time plot's curves, by view origin: the angles and range (truth, measured and each
+    estimator), run 0's errors, and the RMSE and NEES over runs (with the 95 % band). The
+    blueprint's axes and legends and the drawn series both come from these."""
+    d, zero = first.data, runs[0]
+    t = d.t
+    series = {"alpha": {"truth": to_arcmin(d.alpha), "measured": to_arcmin(d.alpha_meas)},
+              "beta": {"truth": to_arcmin(d.beta), "measured": to_arcmin(d.beta_meas)},
+              "range": {"truth": d.range}}
+    for name, est in first.estimates.items():
+        series["alpha"][name], series["beta"][name] = to_arcmin(est.alpha), to_arcmin(est.beta)
+        series["range"][name] = est.range
+    e = zero.errors
+    out = {"/series/alpha": views.Curves(t, series["alpha"], "arcmin"),
+           "/series/beta": views.Curves(t, series["beta"], "arcmin"),
+           "/series/range": views.Curves(t, series["range"], "m"),
+           "/errors/x": views.Curves(t, {n: v[:, 0] for n, v in e.items()}, "m"),
+           "/errors/y": views.Curves(t, {n: v[:, 1] for n, v in e.items()}, "m"),
+           "/errors/alpha": views.Curves(t, {n: to_arcmin(v[:, 2]) for n, v in e.items()}, "arcmin"),
+           "/errors/beta": views.Curves(t, {n: to_arcmin(v[:, 3]) for n, v in e.items()}, "arcmin")}
+    mc = curves(runs)
+    out["/monte_carlo/position_rmse"] = views.Curves(
+        t, {n: c["position_rmse"] for n, c in mc.items() if "position_rmse" in c}, "m")
+    nees = views.Curves(t, {n: c["nees"] for n, c in mc.items() if "nees" in c})
+    if nees.series:
+        lo, hi = metrics.chi2_band(4, len(runs))
+        nees.series.update(bound_lo=np.full_like(t, lo), bound_hi=np.full_like(t, hi))
+        nees.fixed, nees.labels = ("bound_lo", "bound_hi"), {"bound_lo": "95 % low", "bound_hi": "95 % high"}
+    out["/monte_carlo/nees"] = nees
+    return out
+
+
+def blueprint(curves: dict[str, views.Curves], images: bool = False, span: tuple[float, float] = (0.0, 72.0),
               scene: np.ndarray | None = None) -> rrb.Blueprint:
     """The top-down map on the left (framed on ``scene``, the observer's and the object's
     tracks); named tabs of angles and range, errors, the curves over runs and the results on
-    the right; every plot opens on the whole run ``span``."""
+    the right; every plot opens on the whole run ``span``, its axis and legend fitted to its
+    ``curves``. The legend is in the first plot of each tab: the colours are the same below it."""
+
+    def plot(origin: str, name: str, legend: bool = True) -> rrb.TimeSeriesView:
+        return views.plot(origin, name, span, curves.get(origin), legend=legend)
+
     series = rrb.Vertical(
-        views.plot("/series/alpha", "azimuth alpha (arcmin)", span),
-        views.plot("/series/beta", "elevation beta (arcmin)", span),
-        views.plot("/series/range", "range d (m)", span),
+        plot("/series/alpha", "azimuth alpha (arcmin)"),
+        plot("/series/beta", "elevation beta (arcmin)", legend=False),
+        plot("/series/range", "range d (m)", legend=False),
         name="angles and range",
     )
     errors = rrb.Vertical(
-        views.plot("/errors/x", "error x (m)", span),
-        views.plot("/errors/y", "error y (m)", span),
-        views.plot("/errors/alpha", "error alpha (arcmin)", span),
-        views.plot("/errors/beta", "error beta (arcmin)", span),
+        plot("/errors/x", "error x (m)"),
+        plot("/errors/y", "error y (m)", legend=False),
+        plot("/errors/alpha", "error alpha (arcmin)", legend=False),
+        plot("/errors/beta", "error beta (arcmin)", legend=False),
         name="errors (run 0)",
     )
     mc = rrb.Vertical(
-        views.plot("/monte_carlo/position_rmse", "position RMSE over runs (m)", span),
-        views.plot("/monte_carlo/nees", "NEES over runs (4 states), 95 % band", span),
+        plot("/monte_carlo/position_rmse", "position RMSE over runs (m)"),
+        plot("/monte_carlo/nees", "NEES over runs (4 states), grey: 95 % band"),
         name="over runs",
     )
     tabs = [series, errors, mc, rrb.TextDocumentView(origin="/summary", name="results")]
@@ -63,7 +103,7 @@ def blueprint(names: list[str], images: bool = False, span: tuple[float, float] 
         left = rrb.Vertical(
             left,
             rrb.Spatial2DView(origin="/camera", name="camera (detections)"),
-            row_shares=[1, 1],
+            row_shares=[1, 1], name="map and camera",
         )
         tabs.insert(3, rrb.Vertical(
             views.plot("/images/error", "image stage error (arcmin)", span),
@@ -71,16 +111,25 @@ def blueprint(names: list[str], images: bool = False, span: tuple[float, float] 
             rrb.TextLogView(origin="/camera/status", name="no detection"),
             name="image stage"))
     return rrb.Blueprint(
-        rrb.Horizontal(left, rrb.Tabs(*tabs), column_shares=[3, 2]),
+        rrb.Horizontal(left, rrb.Tabs(*tabs, name="plots"), column_shares=[3, 2]),
         collapse_panels=True,
     )
 
 
-def layout(first: RunResult) -> rrb.Blueprint:
+def layout(first: RunResult, runs: list[RunSummary]) -> rrb.Blueprint:
     """The default layout of a run's recording."""
     d = first.data
-    return blueprint(list(first.estimates), images=first.images is not None, span=(float(d.t[0]), float(d.t[-1])),
-                     scene=np.concatenate([d.observer, d.target[:, :2]]))
+    return blueprint(plots(first, runs), images=first.images is not None, span=(float(d.t[0]), float(d.t[-1])),
+                     scene=scene(first))
+
+
+def scene(first: RunResult) -> np.ndarray:
+    """What the map frames: the observer's and the object's tracks, and where each estimate
+    mostly is (the box of its 5-95 % quantiles: a noisy fix's spread, not one that runs away)."""
+    d = first.data
+    boxes = [np.nanpercentile(e.position, [5, 95], axis=0) for e in first.estimates.values()
+             if np.isfinite(e.position).any()]
+    return np.concatenate([d.observer, d.target[:, :2], *boxes])
 
 
 def record(rec: rr.RecordingStream, first: RunResult, runs: list[RunSummary], table_md: str) -> None:
@@ -89,56 +138,63 @@ def record(rec: rr.RecordingStream, first: RunResult, runs: list[RunSummary], ta
     d = first.data
     t = d.t
     rec.log("/map", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
-    draw.track(rec, "/map/observer/path", d.observer, draw.color("observer"))
-    draw.moving_point(rec, "/map/observer/camera", TL, t, d.observer, draw.color("observer"), 4.0,
-                      "camera")
-    draw.track(rec, "/map/truth/path", d.target[:, :2], draw.color("truth"))
-    draw.moving_point(rec, "/map/truth/position", TL, t, d.target[:, :2], draw.color("truth"), 4.0,
-                      "object")
+    top = views.on_top(scene(first))
+    # seen from above, what is higher is drawn on top: the truth, thin, over the line of sight over
+    # the estimates, wider, so both show; widths in UI points, the same at any zoom (a 600 m scene
+    # made 0.6 m lines 1 px wide)
+    draw.track(rec, "/map/observer/path", d.observer, draw.color("observer"), -1.0, z=top)
+    draw.moving_point(rec, "/map/observer/camera", TL, t, d.observer, draw.color("observer"), -5.0,
+                      "camera", z=top)
+    draw.track(rec, "/map/truth/path", d.target[:, :2], draw.color("truth"), -0.6, z=top)
+    draw.moving_point(rec, "/map/truth/position", TL, t, d.target[:, :2], draw.color("truth"), -5.0,
+                      "object", z=top)
     seen = np.where(d.seen[:, None], d.target[:, :2], np.nan)
-    draw.segments(rec, "/map/line_of_sight", TL, t, d.observer, seen, (255, 255, 120), 0.25)
-
-    draw.scalars(rec, "/series/alpha/truth", TL, t, to_arcmin(d.alpha), "truth", draw.color("truth on white"))
-    draw.scalars(rec, "/series/alpha/measured", TL, t, to_arcmin(d.alpha_meas), "measured",
-                 draw.color("measured"), 1.0)
-    draw.scalars(rec, "/series/beta/truth", TL, t, to_arcmin(d.beta), "truth", draw.color("truth on white"))
-    draw.scalars(rec, "/series/beta/measured", TL, t, to_arcmin(d.beta_meas), "measured",
-                 draw.color("measured"), 1.0)
-    draw.scalars(rec, "/series/range/truth", TL, t, d.range, "truth", draw.color("truth on white"))
+    draw.segments(rec, "/map/line_of_sight", TL, t, d.observer, seen, (255, 255, 120), -0.75, z=top / 2)
 
     for name, est in first.estimates.items():
         rgb, x = first.estimators[name].color, draw.emphasis(first.estimators[name])
-        base, w = f"/map/{name}", 1.5 * x
-        draw.track(rec, f"{base}/track", est.position, rgb, 0.5 * x)
-        draw.moving_point(rec, f"{base}/position", TL, t, est.position, rgb, 3.0 * x, name)
+        base = f"/map/{name}"
+        draw.track(rec, f"{base}/track", est.position, rgb, -1.0 * x)
+        draw.moving_point(rec, f"{base}/position", TL, t, est.position, rgb, -4.0 * x, name)
         if est.covariance is not None:
             draw.covariance_ellipses(rec, f"{base}/ellipse", TL, t, est.position, est.covariance, rgb)
         if est.forecast is not None:
-            draw.polylines(rec, f"{base}/forecast", TL, t, est.forecast, rgb, 0.5 * x)
-        draw.scalars(rec, f"/series/alpha/{name}", TL, t, to_arcmin(est.alpha), name, rgb, w)
-        draw.scalars(rec, f"/series/beta/{name}", TL, t, to_arcmin(est.beta), name, rgb, w)
-        draw.scalars(rec, f"/series/range/{name}", TL, t, est.range, name, rgb, w)
-        e = runs[0].errors[name]
-        draw.scalars(rec, f"/errors/x/{name}", TL, t, e[:, 0], name, rgb, w)
-        draw.scalars(rec, f"/errors/y/{name}", TL, t, e[:, 1], name, rgb, w)
-        draw.scalars(rec, f"/errors/alpha/{name}", TL, t, to_arcmin(e[:, 2]), name, rgb, w)
-        draw.scalars(rec, f"/errors/beta/{name}", TL, t, to_arcmin(e[:, 3]), name, rgb, w)
-
-    for name, c in curves(runs).items():
-        rgb, w = first.estimators[name].color, 1.5 * draw.emphasis(first.estimators[name])
-        if "position_rmse" in c:
-            draw.scalars(rec, f"/monte_carlo/position_rmse/{name}", TL, t, c["position_rmse"], name, rgb, w)
-        if "nees" in c:
-            draw.scalars(rec, f"/monte_carlo/nees/{name}", TL, t, c["nees"], f"{name} ANEES", rgb, w)
-    if runs[0].nees:
-        lo, hi = metrics.chi2_band(4, len(runs))
-        draw.scalars(rec, "/monte_carlo/nees/bound_lo", TL, t, np.full_like(t, lo), "95 % low",
-                     (150, 150, 150), 1.0)
-        draw.scalars(rec, "/monte_carlo/nees/bound_hi", TL, t, np.full_like(t, hi), "95 % high",
-                     (150, 150, 150), 1.0)
-    rec.log("/summary", rr.TextDocument(table_md, media_type=rr.MediaType.MARKDOWN), static=True)
+            draw.polylines(rec, f"{base}/forecast", TL, t, est.forecast, rgb, -0.75 * x)
+    for origin, c in plots(first, runs).items():
+        for key, values in c.series.items():
+            est = first.estimators.get(key)
+            if est is not None:
+                rgb, w = est.color, 1.5 * draw.emphasis(est)
+            else:
+                rgb, w = SERIES.get(key, GREY), 1.5 if key == "truth" else 1.0
+            draw.scalars(rec, f"{origin}/{key}", TL, c.t, values, c.label(key), rgb, w)
+    text = table_md + "\n\n" + how_to_read(first, len(runs))
+    rec.log("/summary", rr.TextDocument(text, media_type=rr.MediaType.MARKDOWN), static=True)
     if first.images is not None:
         record_images(rec, first)
+
+
+def how_to_read(first: RunResult, runs: int) -> str:
+    """The note under the results table: what each view shows and how to read it."""
+    lo, hi = metrics.chi2_band(4, runs)
+    shown = {n: e for n, e in first.estimators.items() if n in first.estimates}
+    lines = [
+        "**How to read this recording** (run 0 drawn in full; scrub the `time` timeline, seconds)",
+        "",
+        f"- colours: {draw.colour_key(shown)}; truth white on the map, black in the plots; measured angles grey.",
+        "- map, top-down (x east, y north, m): the observer's path and camera (blue), the object (white), "
+        "the line of sight (yellow, while the object is seen); each estimator's track, its current position, "
+        "its 95 % covariance ellipse and its l-step forecast.",
+        "- angles and range: azimuth alpha from the course and elevation beta below the horizon (arcmin), "
+        "horizontal range d (m), for the truth, the measurements and each estimator.",
+        "- errors (run 0): truth minus estimate in x, y (m) and the angles (arcmin).",
+        f"- over runs ({runs} runs): the position RMSE at each step over the runs; the NEES of the estimators with "
+        f"a covariance, averaged over the runs, with its 95 % band ({lo:.2f}-{hi:.2f} for 4 states): inside it "
+        "the covariance is consistent with the errors, above it the estimator is overconfident.",
+        "- a plot's title names an estimator that is off its scale (its own values would flatten the others); "
+        "the legend is in the first plot of each tab, the colours are the same below it.",
+    ]
+    return "\n".join(lines)
 
 
 def record_images(rec: rr.RecordingStream, first: RunResult) -> None:

@@ -79,7 +79,7 @@ TABLE: dict[str, Estimator] = table(
               causal=True, covariances=True),
     Estimator(ITERATED, iterated, (40, 200, 230), "that filter re-linearised at its own estimate until it settles",
               causal=True, covariances=True),
-    Estimator("gtsam-ba", bundle_adjustment, (185, 110, 255),
+    Estimator("gtsam-ba", bundle_adjustment, (190, 90, 240),
               "GTSAM bundle adjustment: SIFT tie points, navigation priors, DEM height factors, LM",
               causal=True, covariances=True),
 )

@@ -493,7 +493,7 @@ def narrow_tables(markdown: str, columns: int = 5) -> str:
     return "\n".join(out)
 
 
-def layout(first: RunResult) -> rrb.Blueprint:
+def layout(first: RunResult, runs: list[RunSummary]) -> rrb.Blueprint:
     """The default layout of a run's recording."""
     return blueprint(list(first.estimates))
 

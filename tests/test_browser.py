@@ -1,0 +1,94 @@
+"""The recordings as a user meets them: one small recording per experiment opened cold in the
+Rerun web viewer (served on loopback) in headless Chromium, Debian's, driven by selenium with the
+system driver. The viewer is a canvas: the views the blueprint asks for are read from the file,
+and what was drawn is checked in pixels: maps on their dark background with the truth and every
+estimator's colour on them, plots with every estimator's curve in its colour.
+
+Skipped where Chromium is not installed, unless ``WORKBENCH_REQUIRE_BROWSER`` is set (``.ci/run``
+installs it and sets it, so there it runs or fails)."""
+
+import os
+
+import numpy as np
+import pytest
+from launcher import wb
+
+from workbench.recording import browser, draw, layout
+
+WHY = browser.available()
+pytestmark = pytest.mark.skipif(WHY is not None and not os.environ.get("WORKBENCH_REQUIRE_BROWSER"),
+                                reason=f"no browser here: {WHY}")
+
+CASES = {
+    "sea": ("--runs", "3", "--duration", "30"),
+    "omni": ("--runs", "2", "--duration", "60"),
+    "terrain": ("--runs", "1", "--size", "100x100", "--levels-linear", "3", "--levels-angular", "1"),
+}
+
+
+@pytest.fixture(scope="module")
+def shots(tmp_path_factory):
+    """Each experiment's recording and its default view as the browser drew it."""
+    d = tmp_path_factory.mktemp("browser")
+    out = {}
+    with browser.Browser() as b:
+        for name, args in CASES.items():
+            path = d / f"{name}.rrd"
+            r = wb(name, *args, "--out", str(path))
+            assert r.returncode == 0, r.stderr
+            (_, rbl), *_ = browser.tab_blueprints(path, d)
+            img = b.shoot(path, rbl)
+            browser.save_png(d / f"{name}.png", img)  # left in pytest's tmp folder to look at
+            out[name] = (path, img)
+    return out
+
+
+def near(img: np.ndarray, rgb, tol: float = 40.0) -> np.ndarray:
+    return np.linalg.norm(img.astype(float) - np.asarray(rgb, float), axis=-1) < tol
+
+
+def columns(img: np.ndarray, lo: float, hi: float) -> np.ndarray:
+    """The part of the picture between fractions ``lo`` and ``hi`` of its width, below the top bar
+    and above the time panel."""
+    h, w = img.shape[:2]
+    return img[int(0.06 * h):int(0.93 * h), int(lo * w):int(hi * w)]
+
+
+def estimator_colours(path):
+    from workbench.recording import provenance
+
+    return {n: tuple(e["color"]) for n, e in provenance.read(path).metrics["estimator_table"].items()}
+
+
+@pytest.mark.parametrize("name", list(CASES))
+def test_the_blueprints_views_are_there(shots, name):
+    path, _ = shots[name]
+    views = browser.layout(path).views()
+    kinds = {v.kind for v in views}
+    assert "3D" in kinds and "TextDocument" in kinds and ("TimeSeries" in kinds or name == "terrain")
+    assert all(v.name for v in views)
+
+
+@pytest.mark.parametrize("name", ["sea", "omni"])
+def test_maps_and_plots_are_drawn(shots, name):
+    """Left (maps, 3/5 of the width): the dark map background, the truth and every estimator's
+    colour on it. Right (plots): every estimator's curve, more of its colour than the legend's dot
+    (about 50 px); curves near the truth lie on one another, so not much more."""
+    path, img = shots[name]
+    maps, plots = columns(img, 0.0, 0.58), columns(img, 0.62, 1.0)
+    assert near(maps, layout.MAP_BACKGROUND, 12).mean() > 0.3, "the maps' background is not there"
+    assert near(maps, draw.color("truth"), 30).sum() > 30, "no truth drawn on the map"
+    for est, rgb in estimator_colours(path).items():
+        assert near(maps, rgb).sum() > 30, f"{est} not on the map"
+        assert near(plots, rgb).sum() > 80, f"{est}'s curve not in the plots"
+
+
+def test_the_terrain_scene_is_drawn(shots):
+    path, img = shots["terrain"]
+    scene = columns(img, 0.0, 0.58)
+    colours = len(np.unique(scene[::3, ::3].reshape(-1, 3) // 16, axis=0))
+    assert colours > 100, "the 3D scene looks blank"
+    assert near(scene, layout.MAP_BACKGROUND, 12).mean() > 0.05
+    for est, rgb in estimator_colours(path).items():
+        if est != "navigation":  # its frustum sits under the truth's at this size
+            assert near(scene, rgb).sum() > 10, f"{est}'s frustum not in the scene"
