@@ -4,14 +4,14 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: demo test lint bench clean
+.PHONY: demo test lint bench clean screenshots
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
 
 $(STAMP): $(BIN)/python pyproject.toml
-	$(BIN)/python -m pip install --quiet -e ".[test,stonesoup]"
+	$(BIN)/python -m pip install --quiet -e ".[test,stonesoup,browser]"
 	touch $(STAMP)
 
 demo: $(STAMP)
@@ -20,6 +20,16 @@ demo: $(STAMP)
 test: $(STAMP)
 	$(BIN)/python -m ruff check workbench tests benchmarks
 	$(BIN)/python -m pytest -q
+
+# A PNG per view of the demo's recordings as the web viewer draws them (headless Chromium, Debian's
+# chromium and chromium-driver), and the README's picture of each experiment.
+screenshots: $(STAMP)
+	test -e recordings/sea-paper.rrd || $(BIN)/workbench demo
+	$(BIN)/workbench screenshot recordings/*.rrd --out recordings/screenshots --force
+	mkdir -p docs/images
+	cp recordings/screenshots/omni-paper.default.png docs/images/omni.png
+	cp recordings/screenshots/sea-paper.default.png docs/images/sea.png
+	cp recordings/screenshots/terrain-common.default.png docs/images/terrain.png
 
 lint: $(STAMP)
 	$(BIN)/python -m ruff check workbench tests benchmarks

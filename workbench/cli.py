@@ -154,6 +154,7 @@ app.command("sweep-report")(friendly(sweep_commands.sweep_report))
 app.command("info")(friendly(recording_commands.info))
 app.command("replay")(friendly(recording_commands.replay))
 app.command("screenshot")(friendly(recording_commands.screenshot))
+app.command("compare")(friendly(recording_commands.compare))
 
 
 @app.command("list")

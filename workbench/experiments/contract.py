@@ -415,6 +415,7 @@ class Experiment:
     presets: tuple[Preset, ...] = ()   # named sweeps (`workbench sweep --preset NAME`)
     headline: tuple[str, ...] = ()     # the per-run metrics a sweep's report leads with
     paper_notes: Mapping[str, str] = {}  # metric -> the paper's figure, shown beside a sweep's table
+    compared: tuple[str, ...] = ()     # time plots (view origins) whose curves `workbench compare` differences
     data_type: type = object           # the public dataset an estimator reads
     estimate_type: type = object       # the public estimate an estimator returns
 

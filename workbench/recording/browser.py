@@ -62,7 +62,7 @@ class Node:
         return [n for n in self.walk() if n.is_view]
 
 
-def _blueprint_chunks(path: Path) -> tuple[str, list]:
+def blueprint_chunks(path: Path) -> tuple[str, list]:
     from rerun.chunk import RrdReader
 
     reader = RrdReader(str(path))
@@ -75,7 +75,7 @@ def _blueprint_chunks(path: Path) -> tuple[str, list]:
 def layout(path: Path) -> Node:
     """The recording's default blueprint as a tree of containers and views (names, view
     classes, origins), read from the file itself."""
-    _, chunks = _blueprint_chunks(path)
+    _, chunks = blueprint_chunks(path)
     rows: dict[str, dict] = {}
     root = None
     for ch in chunks:
@@ -117,13 +117,15 @@ def tab_blueprints(path: Path, folder: Path) -> list[tuple[str, Path]]:
     from rerun import bindings
     from rerun.blueprint.archetypes import ContainerBlueprint, TimePanelBlueprint
 
-    app_id, chunks = _blueprint_chunks(path)
+    app_id, chunks = blueprint_chunks(path)
     tree = layout(path)
     fronts: list[tuple[str, Node | None, Node | None]] = [("default", None, None)]
     for tabs in (n for n in tree.walk() if n.kind == "tabs"):
         fronts += [(child.name or child.kind, tabs, child) for child in tabs.children[1:]]
-    out = []
+    out, used = [], set()
     for k, (name, tabs, child) in enumerate(fronts):
+        name = next(n for n in (name, *(f"{name} {i}" for i in range(2, len(fronts) + 2))) if n not in used)
+        used.add(name)
         stream = rr.RecordingStream._from_native(bindings.new_blueprint(
             application_id=app_id, make_default=False, make_thread_default=False, default_enabled=True))
         stream.send_chunks(chunks)

@@ -15,7 +15,18 @@ def info(file: Path = typer.Argument(..., help="A .rrd recording.")) -> None:
     estimators and its results table."""
     from workbench.recording import provenance
 
-    typer.echo(provenance.describe(provenance.read(file)))
+    stored = provenance.read(file) if not _is_comparison(file) else None
+    typer.echo(provenance.describe(stored) if stored else provenance.describe_comparison(file, _is_comparison(file)))
+
+
+def _is_comparison(file: Path) -> list[dict] | None:
+    """The inputs of a ``compare`` recording (None for anything else, which ``read`` then judges)."""
+    from workbench.recording import provenance
+
+    try:
+        return provenance.comparison(file) if file.is_file() and file.suffix == ".rrd" else None
+    except Exception:  # not readable as a recording: provenance.read says so in one line
+        return None
 
 
 def replay(file: Path = typer.Argument(..., help="A .rrd recording."),
@@ -53,7 +64,8 @@ def screenshot(files: list[Path] = typer.Argument(..., help="One or more .rrd re
     if views not in ("all", "default"):
         raise WorkbenchError(f"--views must be all or default, not {views!r}")
     for f in files:
-        provenance.read(f)  # a one-line error for anything that is not a workbench recording
+        if not _is_comparison(f):
+            provenance.read(f)  # a one-line error for anything that is not a workbench recording
     out.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory() as tmp, browser.Browser() as b:
         for f in files:
@@ -64,3 +76,28 @@ def screenshot(files: list[Path] = typer.Argument(..., help="One or more .rrd re
                     raise WorkbenchError(f"{target} exists; pass --force to overwrite it")
                 browser.save_png(target, b.shoot(f, rbl))
                 typer.echo(f"{target}")
+
+
+def compare(files: list[Path] = typer.Argument(..., help="Two or more .rrd recordings of one experiment."),
+            out: Path = typer.Option(Path("recordings/compare.rrd"), help="The comparison recording."),
+            labels: str = typer.Option(None, help="Comma-separated names of the runs [what tells their configs "
+                                                  "apart, e.g. lam=0.99]."),
+            pair: list[str] = typer.Option(None, help="FIRST:LATER: also difference the later runs' estimator LATER "
+                                                     "against the first run's FIRST (e.g. ekf:my_filter)."),
+            force: bool = typer.Option(False, help="Overwrite --out.")) -> None:
+    """One recording of several runs of an experiment: each side by side as it opens alone, their
+    curves and maps overlaid, and each later run's headline error curves minus the first's."""
+    from workbench.errors import WorkbenchError
+    from workbench.experiments.contract import split_list
+    from workbench.recording import compare as comparison
+
+    pairs = []
+    for p in pair or []:
+        a, sep, b = p.partition(":")
+        if not sep or not a.strip() or not b.strip():
+            raise WorkbenchError(f"--pair {p!r}: give FIRST:LATER, two estimator names")
+        pairs.append((a.strip(), b.strip()))
+    runs = comparison.write(list(files), out, split_list(labels) if labels is not None else None, pairs, force)
+    typer.echo(f"comparison: {out}")
+    for r in runs:
+        typer.echo(f"  {r.label:24s} {r.path}  (under /{r.slug})")

@@ -55,11 +55,36 @@ def read(path: Path) -> Stored:
         raise WorkbenchError(f"cannot read {path} as a Rerun recording: {type(exc).__name__}: "
                              f"{str(exc).splitlines()[0] if str(exc) else ''}") from None
     if "experiment" not in props or "config" not in props:
+        inputs = comparison(path)
+        if inputs is not None:
+            raise WorkbenchError(f"{path} is a comparison of {len(inputs)} recordings "
+                                 f"({', '.join(Path(i['path']).name for i in inputs)}), not a run: "
+                                 "`workbench info` lists them; replay each of them")
         raise WorkbenchError(f"{path} is not a workbench recording (no stored experiment and config)")
     _check_version(path, str(props.get("version", "")))
     return Stored(path, str(props["experiment"]), json.loads(props["config"]), str(props.get("version", "")),
                   str(props.get("git_commit", "unknown")), int(props.get("seed", 0)), str(props.get("command", "")),
                   str(props.get("date", "")), json.loads(metrics["json"]) if "json" in metrics else None)
+
+
+def comparison(path: Path) -> list[dict] | None:
+    """The recordings a ``workbench compare`` recording was made of (path, label, entity prefix,
+    command, commit), or ``None`` if it is not one."""
+    from workbench.recording import readback
+
+    props = readback.properties(path, "workbench_compare")
+    return json.loads(props["inputs"]) if "inputs" in props else None
+
+
+def describe_comparison(path: Path, inputs: list[dict]) -> str:
+    """What ``workbench info`` prints of a comparison."""
+    from workbench.recording import readback
+
+    props = readback.properties(path, "workbench_compare")
+    lines = [f"{path}: a comparison of {len(inputs)} {props.get('experiment', '?')} recordings",
+             f"made by:   {props.get('command') or '(not stored)'} with workbench {props.get('version', '?')}"]
+    lines += [f"  {i['prefix']:24s} {i['label']}: {i['path']} (made by: {i['command'] or '?'})" for i in inputs]
+    return "\n".join(lines)
 
 
 def _check_version(path: Path, version: str) -> None:

@@ -54,6 +54,29 @@ def series(path: Path, entity: str, timeline: str = "time") -> tuple[np.ndarray,
     return t[order], v[order]
 
 
+def all_series(path: Path, under: tuple[str, ...], timeline: str = "time") -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """Every scalar time series at an entity under one of the paths ``under``, in one pass over
+    the file: entity -> (times (s), values), sorted by time."""
+    parts: dict[str, list[tuple[np.ndarray, np.ndarray]]] = {}
+    roots = tuple(u.rstrip("/") + "/" for u in under)
+    for chunk in RrdReader(str(path)).store().stream():
+        entity = str(chunk.entity_path)
+        if chunk.is_static or not entity.startswith(roots):
+            continue
+        batch = chunk.to_record_batch()
+        if timeline not in batch.schema.names or "Scalars:scalars" not in batch.schema.names:
+            continue
+        t = batch.column(timeline).cast(pa.int64()).to_numpy(zero_copy_only=False) / 1e9
+        v = np.array([x[0] if x else np.nan for x in batch.column("Scalars:scalars").to_pylist()], float)
+        parts.setdefault(entity, []).append((t, v))
+    out = {}
+    for entity, pieces in parts.items():
+        t, v = np.concatenate([p[0] for p in pieces]), np.concatenate([p[1] for p in pieces])
+        order = np.argsort(t, kind="stable")
+        out[entity] = (t[order], v[order])
+    return out
+
+
 def static_values(path: Path, entity: str, component: str) -> list:
     """A static component's values (e.g. ``SeriesLines:colors``) as logged, first chunk that has it."""
     for chunk in RrdReader(str(path)).store().stream():

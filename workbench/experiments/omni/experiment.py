@@ -33,6 +33,7 @@ class Omni(Experiment):
                                           "bearing_rate": (2.0, 5.0, 10.0)}, estimators="odometry,ekf,isam2"),
     )
     headline = ("position_rmse", "heading_rmse", "anees")
+    compared = ("/monte_carlo/position", "/monte_carlo/heading", "/errors/position", "/errors/heading")
     paper_notes = {"position_rmse": "paper's claim: under 0.5 m after settling (scenario paper)",
                    "heading_rmse": "paper's claim: under 1 deg after settling (scenario paper)"}
 

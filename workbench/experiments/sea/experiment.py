@@ -33,6 +33,7 @@ class Sea(Experiment):
                {"sigma_alpha_arcmin": (0.44, 0.88, 1.76), "sigma_beta_arcmin": (0.78, 1.56, 3.12)}),
     )
     headline = ("position_rmse", "rmse_alpha", "anees")
+    compared = ("/monte_carlo/position_rmse", "/errors/x", "/errors/y")
     paper_notes = {"rmse_x": "paper's Table 2: geometric 20.7 m, rls 16.9 m (scenario paper)",
                    "rmse_y": "paper's Table 2: geometric 31 m, rls 25.2 m (scenario paper)",
                    "rmse_alpha": "paper's Table 2: geometric 0.88', rls 0.57' (scenario paper)"}

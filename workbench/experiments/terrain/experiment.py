@@ -35,6 +35,7 @@ class Terrain(Experiment):
                report="workbench.experiments.terrain.grid:from_sweep"),
     )
     headline = ("dr_fraction", "dx_fraction", "position_error")
+    compared = ()
     paper_notes = {"dr_fraction": "paper (Fig. 3): mean radial error 40-60 % of the maximum after processing; "
                    "its spread 3-10 % (100x100), 2-8 % (200x200)",
                    "dx_fraction": "paper (Fig. 3): mean |dX| at most 40-60 % of the maximum; spread 6-16 % "
