@@ -11,7 +11,7 @@ $(BIN)/python:
 	$(BIN)/python -m pip install --quiet --upgrade pip
 
 $(STAMP): $(BIN)/python pyproject.toml
-	$(BIN)/python -m pip install --quiet -e ".[test,stonesoup,browser]"
+	$(BIN)/python -m pip install --quiet -e ".[test,stonesoup,browser,notebook]"
 	touch $(STAMP)
 
 demo: $(STAMP)

@@ -6,7 +6,10 @@ The Python API (imported on first use, so ``import workbench`` stays light):
   run an experiment, your own estimators beside the built-ins (:func:`workbench.api.run`);
 * ``workbench.configure(experiment, scenario, **overrides)``: the config it would use;
 * ``workbench.experiment(name)``: the experiment's contract (scenarios, estimator table, types);
-* ``@workbench.estimator(description=..., causal=..., covariances=...)``: describe your estimator.
+* ``@workbench.estimator(description=..., causal=..., covariances=...)``: describe your estimator;
+* ``workbench.show(path)``: a recording inline in a Jupyter notebook, in its own layout;
+* ``workbench.compare([a, b], out, labels=..., pairs=...)``: one recording of several runs side by
+  side, overlaid and differenced (the ``workbench compare`` command).
 """
 
 from importlib.metadata import PackageNotFoundError, version
@@ -16,7 +19,7 @@ try:
 except PackageNotFoundError:  # running from a source tree that is not installed
     __version__ = "0.0.0+unknown"
 
-__all__ = ["run", "configure", "experiment", "estimator", "Result"]
+__all__ = ["run", "configure", "experiment", "estimator", "Result", "show", "compare"]
 
 
 def __getattr__(name: str):
@@ -32,4 +35,12 @@ def __getattr__(name: str):
         from workbench.experiments.plugins import estimator
 
         return estimator
+    if name == "show":
+        from workbench.recording.notebook import show
+
+        return show
+    if name == "compare":
+        from workbench.recording.compare import write
+
+        return write
     raise AttributeError(f"module 'workbench' has no attribute {name!r}")
