@@ -96,7 +96,7 @@ def recorded(tmp_path_factory) -> tuple[run.RunResult, Recording, np.ndarray]:
     first = EXPERIMENT.run_once(cfg, 0, EXPERIMENT.select(), record=True)
     path = tmp_path_factory.mktemp("terrain_record") / "t.rrd"
     with stream.recording(path, "terrain", cfg.to_json(), cfg.seed, record.blueprint(list(first.estimates))) as rec:
-        record.record(rec, first, [EXPERIMENT.evaluate(first, cfg, 0)], "| a | b |\n|---|---|\n| 1 | 2 |")
+        EXPERIMENT.record(rec, first, [EXPERIMENT.evaluate(first, cfg, 0)], "| a | b |\n|---|---|\n| 1 | 2 |")
     return first, Recording(path), record.local_origin(first.scene)
 
 
@@ -318,7 +318,7 @@ def test_real_pair_in_a_local_frame(tmp_path):
     first = EXPERIMENT.run_once(cfg, 0, EXPERIMENT.select(), record=True)
     path = tmp_path / "ngi.rrd"
     with stream.recording(path, "terrain", cfg.to_json(), cfg.seed, record.blueprint(list(first.estimates))) as rec:
-        record.record(rec, first, [EXPERIMENT.evaluate(first, cfg, 0)], "table")
+        EXPERIMENT.record(rec, first, [EXPERIMENT.evaluate(first, cfg, 0)], "table")
     r, origin = Recording(path), record.local_origin(first.scene)
     assert np.abs(origin[:2]).max() > 1e5 and origin[2] == 0.0
     cam = r.values("/world/cameras/truth/II", "Transform3D:translation")

@@ -44,6 +44,7 @@ class Result:
     metrics_path: Path | None = None
     failures: dict[str, str] = field(default_factory=dict)
     lines: list[str] = field(default_factory=list)  # what the exports wrote
+    live: Any = None                     # the live stream (--spawn / --serve / --connect), kept open
 
     @property
     def data(self) -> Any:
@@ -63,7 +64,7 @@ def configure(experiment: str | Experiment, scenario: str | None = None, **overr
 def run(experiment: str | Experiment, scenario: str | None = None, *, config: Any = None,
         estimators: Iterable[Any] | str | None = None,
         out: str | Path | None = None, metrics: str | Path | None = None, force: bool = False,
-        jobs: int | None = None, spawn: bool = False, serve: bool = False,
+        jobs: int | None = None, spawn: bool = False, serve: bool = False, connect: str | None = None,
         progress: Callable[[int, int], None] | None = None, extras: dict | None = None,
         **overrides: Any) -> Result:
     """Run an experiment: ``runs`` Monte Carlo runs (``seed``, ``runs`` and every other config
@@ -73,6 +74,10 @@ def run(experiment: str | Experiment, scenario: str | None = None, *, config: An
     ``estimators``: names, ``+name`` (the defaults and), ``module:function`` / ``file.py:function``
     specs, or functions ``(data, cfg) -> Estimate``. ``out``: write run 0's recording there
     (``.rrd``); ``metrics``: the metrics JSON; neither overwrites without ``force``.
+    ``spawn`` / ``serve`` / ``connect``: stream live to a spawned viewer, a gRPC server of this
+    process, or a running viewer at a ``rerun+http://...`` URL: run 0 as soon as it is computed,
+    the curves over runs and the table when the Monte Carlo runs are done (the saved recording is
+    the same either way: it is written from the same results, whatever is streamed).
     ``extras``: the experiment's extra options (e.g. omni's ``export_tum``). ``progress(done,
     total)`` is called as runs finish.
     """
@@ -98,10 +103,15 @@ def run(experiment: str | Experiment, scenario: str | None = None, *, config: An
         done[0] += n
         report(done[0], cfg.runs)
 
+    live = stream.live(exp.name, cfg.to_json(), cfg.seed, spawn, serve, connect)
     report(0, cfg.runs)
     first = exp.run_once(cfg, 0, chosen, record=True, threads=min(2, jobs or 2))
+    zero = exp.evaluate(first, cfg, 0)
+    if live is not None:  # run 0 now, while the other runs compute
+        live.send_blueprint(exp.blueprint(without(first, set(first.failed)), [zero]), make_active=True)
+        exp.record_run(live, without(first, set(first.failed)), zero)
     worker = functools.partial(summarise_run, exp.name, cfg, chosen)
-    summaries = montecarlo.run_all(worker, cfg.runs, exp.evaluate(first, cfg, 0), jobs, tick)
+    summaries = montecarlo.run_all(worker, cfg.runs, zero, jobs, tick)
     failures: dict[str, str] = {}
     for s in summaries:
         for name, why in s.failed.items():
@@ -117,9 +127,13 @@ def run(experiment: str | Experiment, scenario: str | None = None, *, config: An
         stats["failed"] = failures
     stats["wall_seconds"] = time.perf_counter() - t0
     table = exp.table(stats)
+    if live is not None:
+        exp.record_runs(live, first, summaries, table)
+        live.send_blueprint(exp.blueprint(first, summaries), make_active=True, make_default=True)
+        live.flush()
     if out_path is not None:
         with stream.recording(out_path, exp.name, cfg.to_json(), cfg.seed, exp.blueprint(first, summaries),
-                              spawn=spawn, serve=serve, metrics=stats) as rec:
+                              metrics=stats) as rec:
             exp.record(rec, first, summaries, table)
         stats["recording"] = str(out_path)
     lines = exp.export(first, stats, extras, force)
@@ -127,7 +141,7 @@ def run(experiment: str | Experiment, scenario: str | None = None, *, config: An
         stream.write_text_atomic(metrics_path, json.dumps(stats, indent=2))
     for name, why in failures.items():
         warnings.warn(f"estimator {name!r} failed: {why}", RuntimeWarning, stacklevel=2)
-    return Result(exp.name, cfg, stats, table, first, summaries, out_path, metrics_path, failures, lines)
+    return Result(exp.name, cfg, stats, table, first, summaries, out_path, metrics_path, failures, lines, live)
 
 
 def summarise_run(experiment: str, cfg: Any, estimators: list, run: int) -> Any:

@@ -75,17 +75,24 @@ def _progress():
 
 def execute(exp, scenario: str | None, out: Path | None, force: bool, metrics: Path | None, spawn: bool = False,
             serve: bool = False, jobs: int | None = None, estimators: str | None = None, quiet: bool = False,
-            extras: dict | None = None, **overrides):
+            extras: dict | None = None, connect: str | None = None, **overrides):
     """What every experiment command does, through the API; prints the table and the outputs.
     Exits with :data:`FAILED` (after writing everything) if an estimator failed."""
     from workbench import api
 
     bar, task = _progress()
-    with bar, warnings.catch_warnings():
+    from workbench.recording.stream import VIEWER_PORT, LiveWarning
+
+    with bar, warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("ignore", RuntimeWarning)  # the failures are printed below
+        warnings.simplefilter("always", LiveWarning)
         res = api.run(exp, scenario, estimators=estimators, out=out or RECORDINGS / f"{exp.name}.rrd",
-                      metrics=metrics, force=force, jobs=jobs, spawn=spawn, serve=serve, extras=extras,
-                      progress=lambda done, total: bar.update(task, completed=done, total=total), **overrides)
+                      metrics=metrics, force=force, jobs=jobs, spawn=spawn, serve=serve, connect=connect,
+                      extras=extras, progress=lambda done, total: bar.update(task, completed=done, total=total),
+                      **overrides)
+    for w in caught:
+        if issubclass(w.category, LiveWarning):
+            typer.echo(f"warning: {w.message}", err=True)
     if not quiet:
         wall = res.metrics.get("wall_seconds")
         lines = ([f"recording: {res.recording}"] if res.recording else []) + (
@@ -94,9 +101,23 @@ def execute(exp, scenario: str | None, out: Path | None, force: bool, metrics: P
         typer.echo(res.table + "\n\n" + "\n".join(lines))
     for name, why in res.failures.items():
         typer.echo(f"error: estimator {name!r} failed: {why}", err=True)
+    if serve and res.live is not None:
+        typer.echo(f"serving the stream at rerun+http://127.0.0.1:{VIEWER_PORT}/proxy "
+                   f"(rerun --connect rerun+http://127.0.0.1:{VIEWER_PORT}/proxy); Ctrl-C to stop", err=True)
+        _until_interrupted()
     if res.failures:
         raise typer.Exit(FAILED)
     return res
+
+
+def _until_interrupted() -> None:
+    import time
+
+    try:
+        while True:
+            time.sleep(3600)
+    except KeyboardInterrupt:
+        typer.echo("stopped serving", err=True)
 
 
 def _option(opt, exp) -> inspect.Parameter:
@@ -119,8 +140,9 @@ def _shared(exp) -> list[inspect.Parameter]:
             ("out", Path, f"Recording path [recordings/{exp.name}.rrd]."),
             ("force", bool, "Overwrite existing outputs."),
             ("metrics", Path, "Write the metrics JSON here."),
-            ("spawn", bool, "Also stream to a spawned native viewer."),
-            ("serve", bool, "Also serve the stream over gRPC."),
+            ("spawn", bool, "Also stream live to a spawned native viewer (run 0 as soon as it is done)."),
+            ("serve", bool, "Also serve the stream over gRPC, live, until Ctrl-C."),
+            ("connect", str, "Also stream live to a running viewer at this URL (rerun+http://HOST:PORT/proxy)."),
             ("jobs", int, "Processes for Monte Carlo runs [up to 2]."),
             ("estimators", str, f"Comma-separated: {builtin} (the defaults), installed plugins, your own as "
                                 "module:function or file.py:function; +name adds to the defaults.")]
@@ -131,7 +153,7 @@ def _shared(exp) -> list[inspect.Parameter]:
 def _command(exp) -> Callable:
     def command(**given):
         shared = {k: given.pop(k) for k in ("scenario", "out", "force", "metrics", "spawn", "serve", "jobs",
-                                            "estimators")}
+                                            "estimators", "connect")}
         extras = {opt.field: given.pop(opt.field) for opt in exp.extras}
         overrides = {"seed": given.pop("seed"), "runs": given.pop("runs")}
         for opt in exp.options:

@@ -26,8 +26,10 @@ An experiment is a package ``workbench/experiments/<name>/`` with one module per
                    with ``run`` and ``failed``); ``statistics(cfg, summaries, label)``;
                    ``run_metrics(summary, cfg)`` and ``RUN_METRICS``: a run's figures (sweeps)
 ``report.py``      ``table(stats)``: the results table (markdown)
-``record.py``      ``layout(first, summaries)``: the default blueprint; ``record(rec, first, summaries,
-                   table)``: run 0 drawn from ``first`` and its evaluation ``summaries[0]``
+``record.py``      ``layout(first, summaries)``: the default blueprint; ``record_run(rec, first,
+                   summary)``: run 0 drawn from ``first`` and its evaluation (streamed live as
+                   soon as run 0 is done); ``record_runs(rec, first, summaries, table)``: the
+                   curves over runs and the table
 ``experiment.py``  ``EXPERIMENT``: an :class:`Experiment` subclass declaring the above (name,
                    description, config type, scenarios, options, data and estimate types,
                    demo steps) and any hooks for extra options (exports, an alternative run)
@@ -501,8 +503,17 @@ class Experiment:
         return self.role("record").layout(first, summaries)
 
     def record(self, rec: Any, first: Any, summaries: list[Any], table: str) -> None:
-        """Draw run 0 and the curves over runs (``record.record``)."""
-        self.role("record").record(rec, first, summaries, table)
+        """Draw run 0 and the curves over runs: :meth:`record_run` then :meth:`record_runs`."""
+        self.record_run(rec, first, summaries[0])
+        self.record_runs(rec, first, summaries, table)
+
+    def record_run(self, rec: Any, first: Any, summary: Any) -> None:
+        """Draw run 0 from its result and evaluation, all that needs no other run (``record.record_run``)."""
+        self.role("record").record_run(rec, first, summary)
+
+    def record_runs(self, rec: Any, first: Any, summaries: list[Any], table: str) -> None:
+        """Draw what the Monte Carlo runs add and the results table (``record.record_runs``)."""
+        self.role("record").record_runs(rec, first, summaries, table)
 
     def check(self, estimate: Any, data: Any, cfg: Any, estimator: Estimator) -> Any:
         """The estimate, checked against the public type (and completed where it may leave

@@ -206,7 +206,7 @@ class Browser:
         exe = shutil.which("rerun") or str(Path(sys.executable).with_name("rerun"))
         viewer = subprocess.Popen([exe, "--serve-web", "--bind", "127.0.0.1", "--web-viewer-port",
                                    str(self.viewer_port), "--port", str(free_port())],
-                                  stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+                                  stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
         self._stack.callback(_stop, viewer)
         _wait_for_port(self.viewer_port, viewer)
         opts = webdriver.ChromeOptions()
@@ -269,12 +269,20 @@ def _wait_for_port(port: int, proc: subprocess.Popen, timeout: float = 30.0) -> 
 
 
 def _stop(proc: subprocess.Popen) -> None:
-    proc.terminate()
-    try:
-        proc.wait(5)
-    except subprocess.TimeoutExpired:
-        proc.kill()
-        proc.wait()
+    """End the viewer and what it started (the ``rerun`` script runs the viewer binary as a child):
+    its whole process group."""
+    import signal
+
+    for sig, wait in ((signal.SIGTERM, 5), (signal.SIGKILL, 5)):
+        try:
+            os.killpg(proc.pid, sig)
+        except ProcessLookupError:
+            return
+        try:
+            proc.wait(wait)
+            return
+        except subprocess.TimeoutExpired:
+            continue
 
 
 def save_png(path: Path, img: np.ndarray) -> None:

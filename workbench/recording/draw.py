@@ -36,7 +36,7 @@ def colour_name(rgb: tuple[int, int, int]) -> str:
 
 def colour_key(estimators: dict) -> str:
     """``ekf red, gtsam violet, ...``: each estimator's colour in words (a plugin's marked)."""
-    return ", ".join(f"{n} {colour_name(e.color)}" + ("" if e.builtin else " (yours, drawn wider)")
+    return ", ".join(f"{n} {colour_name(e.color)}" + ("" if e.builtin else " (a plugin, drawn wider)")
                      for n, e in estimators.items())
 
 

@@ -72,7 +72,9 @@ def comparison(path: Path) -> list[dict] | None:
     command, commit), or ``None`` if it is not one."""
     from workbench.recording import readback
 
-    props = readback.properties(path, "workbench_compare")
+    with warnings.catch_warnings():  # a file that is no recording: read() says so, in one line
+        warnings.simplefilter("ignore")
+        props = readback.properties(path, "workbench_compare")
     return json.loads(props["inputs"]) if "inputs" in props else None
 
 

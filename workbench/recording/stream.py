@@ -1,5 +1,5 @@
-"""Opening a recording: file sink (atomic: a temporary name renamed at the end), optional
-live viewer (``--spawn``) or gRPC server (``--serve``), and the recording's properties."""
+"""Opening a recording: the file (atomic: a temporary name renamed at the end), a live stream
+(``--spawn``, ``--serve``, ``--connect``), and the recording's properties."""
 
 from __future__ import annotations
 
@@ -69,9 +69,91 @@ def git_commit() -> str | None:
     return out.stdout.strip() or None
 
 
+def _properties(rec: rr.RecordingStream, experiment: str, config: dict, seed: int) -> None:
+    rec.send_recording_name(f"workbench {experiment}")
+    rec.send_property("workbench", rr.AnyValues(
+        experiment=experiment, config=json.dumps(config, sort_keys=True), version=__version__,
+        git_commit=git_commit() or "unknown", seed=seed, command=command_line(),
+        date=datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds")))
+
+
+VIEWER_PORT = 9876
+"""Where a spawned viewer listens, and a served stream (the SDK's default)."""
+
+
+class LiveWarning(UserWarning):
+    """The live viewer could not be reached; the run goes on (the command line prints one line)."""
+
+
+def live(experiment: str, config: dict, seed: int, spawn: bool = False, serve: bool = False,
+         connect: str | None = None) -> rr.RecordingStream | None:
+    """A recording stream to a live viewer, or ``None`` if none is asked for: ``spawn`` a native
+    viewer (where one cannot start, a warning line and the run goes on without it), ``serve``
+    the stream over gRPC from this process, or ``connect`` to a viewer or ``rerun --serve-grpc``
+    at a ``rerun+http://HOST:PORT/proxy`` URL."""
+    import warnings
+
+    sinks: list = []
+    rec = rr.RecordingStream(f"workbench_{experiment}")
+    if spawn:
+        why = spawn_viewer(VIEWER_PORT)
+        if why is None:
+            sinks.append(rr.GrpcSink(f"rerun+http://127.0.0.1:{VIEWER_PORT}/proxy"))
+        else:
+            warnings.warn(f"--spawn: {why}; carrying on without it", LiveWarning, stacklevel=2)
+    if connect:
+        if not str(connect).startswith(("rerun://", "rerun+http://", "rerun+https://")):
+            raise WorkbenchError(f"--connect {connect!r}: give a viewer's URL, rerun+http://HOST:PORT/proxy")
+        sinks.append(rr.GrpcSink(str(connect)))
+    if serve:
+        sinks.append(rr.GrpcServerSink())
+    if not sinks:
+        return None
+    rec.set_sinks(*sinks)
+    _properties(rec, experiment, config, seed)
+    return rec
+
+
+def spawn_viewer(port: int) -> str | None:
+    """A native viewer listening on ``port``: the one already there, or a new one (detached, its
+    output to /dev/null); why not, or ``None``. A viewer that cannot open a window (no display)
+    binds the port and exits a moment later: it must still be there after that moment."""
+    import shutil
+    import time
+
+    if _listening(port, 0.0):
+        return None
+    exe = shutil.which("rerun") or str(Path(sys.executable).with_name("rerun"))
+    if not Path(exe).is_file():
+        return "no Rerun viewer executable found"
+    proc = subprocess.Popen([exe, "--port", str(port)], stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
+                            stderr=subprocess.DEVNULL, start_new_session=True)
+    if not _listening(port, 10.0):
+        proc.kill()
+        return "the viewer did not start listening"
+    time.sleep(1.5)
+    if proc.poll() is not None:
+        return f"the viewer exited (code {proc.returncode}; no display?)"
+    return None
+
+
+def _listening(port: int, wait: float = 5.0) -> bool:
+    import socket
+    import time
+
+    t0 = time.monotonic()
+    while True:
+        with socket.socket() as s:
+            if s.connect_ex(("127.0.0.1", port)) == 0:
+                return True
+        if time.monotonic() - t0 >= wait:
+            return False
+        time.sleep(0.2)
+
+
 @contextmanager
 def recording(path: Path, experiment: str, config: dict, seed: int,
-              blueprint: rrb.Blueprint, spawn: bool = False, serve: bool = False, metrics: dict | None = None):
+              blueprint: rrb.Blueprint, metrics: dict | None = None):
     """A recording stream saved to ``path`` atomically, with its properties stored: the
     experiment, its config, the package version, the git commit, the seed, the command line
     that made it and when, and (``metrics``) the numbers it reports, so ``workbench info``
@@ -83,18 +165,8 @@ def recording(path: Path, experiment: str, config: dict, seed: int,
     path = Path(path)
     tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
     rec = rr.RecordingStream(f"workbench_{experiment}")
-    sinks: list = [rr.FileSink(str(tmp))]
-    if spawn:
-        rr.spawn(connect=False)
-        sinks.append(rr.GrpcSink())
-    if serve:
-        sinks.append(rr.GrpcServerSink())
-    rec.set_sinks(*sinks, default_blueprint=blueprint)
-    rec.send_recording_name(f"workbench {experiment}")
-    rec.send_property("workbench", rr.AnyValues(
-        experiment=experiment, config=json.dumps(config, sort_keys=True), version=__version__,
-        git_commit=git_commit() or "unknown", seed=seed, command=command_line(),
-        date=datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds")))
+    rec.set_sinks(rr.FileSink(str(tmp)), default_blueprint=blueprint)
+    _properties(rec, experiment, config, seed)
     if metrics is not None:
         rec.send_property("workbench_metrics", rr.AnyValues(json=json.dumps(metrics, default=str)))
     ok = False

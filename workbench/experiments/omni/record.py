@@ -145,9 +145,9 @@ def _pending(first: RunResult, attempts: list) -> tuple[np.ndarray, np.ndarray]:
     return first.data.t[np.array(steps, int)] if steps else np.zeros(0), xy
 
 
-def record(rec: rr.RecordingStream, first: RunResult, runs: list[RunSummary], table_md: str) -> None:
-    """Log run 0 in full (``runs[0]`` is its evaluation), the Monte Carlo curves over all
-    runs, and the results table."""
+def record_run(rec: rr.RecordingStream, first: RunResult, zero: RunSummary) -> None:
+    """Log run 0 in full (``zero`` is its evaluation): the maps, its errors, sigmas and NEES, the
+    round images; what the Monte Carlo runs add comes with :func:`record_runs`."""
     d, grid = first.data, first.grid
     t = d.t[grid]
     truth = d.truth[grid]
@@ -161,15 +161,16 @@ def record(rec: rr.RecordingStream, first: RunResult, runs: list[RunSummary], ta
             static=True)
     # seen from above, what is higher is drawn on top: the truth, thin, over the estimate, wider
     top = views.on_top(scene(first))
+    arrow = 0.03 * float(np.ptp(scene(first), axis=0).max())  # the vehicle: 3 % of the scene (2.4 m in 80 m)
     draw.track(rec, "/world/truth/path", truth[:, :2], draw.color("truth"), -0.6, z=top)
-    draw.poses(rec, "/world/truth/vehicle", TL, t, truth, draw.color("truth"), z=top)
+    draw.poses(rec, "/world/truth/vehicle", TL, t, truth, draw.color("truth"), arrow, z=top)
     ray_len = float(min(d.max_range, 30.0)) if np.isfinite(d.max_range) else 10.0
     for name, est in first.estimates.items():
         rgb, x = first.estimators[name].color, draw.emphasis(first.estimators[name])
         base = f"/map/{name}"
         pose, cov = on_grid(est, grid)
         draw.track(rec, f"{base}/path", pose[:, :2], rgb, -1.25 * x)
-        draw.poses(rec, f"{base}/vehicle", TL, t, pose, rgb)
+        draw.poses(rec, f"{base}/vehicle", TL, t, pose, rgb, arrow)
         draw.covariance_ellipses(rec, f"{base}/pose_ellipse", TL, t, pose[:, :2], cov[:, :2, :2], rgb)
         if len(est.map_steps):
             draw.point_sets(rec, f"{base}/landmarks", TL, d.t[est.map_steps], est.map_mean, rgb, 0.35, 0.05)
@@ -182,15 +183,27 @@ def record(rec: rr.RecordingStream, first: RunResult, runs: list[RunSummary], ta
         if est.attempts:
             pt, clouds = _pending(first, est.attempts)
             draw.point_sets(rec, f"{base}/pending", TL, pt, clouds, (255, 140, 0), 0.12, 0.1)
-    for origin, c in plots(first, runs).items():
+    _curves(rec, first, plots(first, [zero]), over_runs=False)
+    if first.images is not None and first.images.frames:
+        _images(rec, first)
+
+
+def record_runs(rec: rr.RecordingStream, first: RunResult, runs: list[RunSummary], table_md: str) -> None:
+    """Log the curves over all runs and the results table with how to read the recording."""
+    _curves(rec, first, plots(first, runs), over_runs=True)
+    text = table_md + "\n\n" + how_to_read(first, len(runs))
+    rec.log("/summary", rr.TextDocument(text, media_type=rr.MediaType.MARKDOWN), static=True)
+
+
+def _curves(rec: rr.RecordingStream, first: RunResult, curves: dict[str, views.Curves], over_runs: bool) -> None:
+    """The plots' series: run 0's, or (``over_runs``) those over the Monte Carlo runs."""
+    for origin, c in curves.items():
+        if origin.startswith("/monte_carlo") != over_runs:
+            continue
         for key, values in c.series.items():
             est = first.estimators.get(key)
             rgb, w = (est.color, 1.5 * draw.emphasis(est)) if est is not None else ((150, 150, 150), 1.0)
             draw.scalars(rec, f"{origin}/{key}", TL, c.t, values, c.label(key), rgb, w)
-    if first.images is not None and first.images.frames:
-        _images(rec, first)
-    text = table_md + "\n\n" + how_to_read(first, len(runs))
-    rec.log("/summary", rr.TextDocument(text, media_type=rr.MediaType.MARKDOWN), static=True)
 
 
 def how_to_read(first: RunResult, runs: int) -> str:

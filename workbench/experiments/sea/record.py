@@ -98,7 +98,7 @@ def blueprint(curves: dict[str, views.Curves], images: bool = False, span: tuple
     )
     tabs = [series, errors, mc, rrb.TextDocumentView(origin="/summary", name="results")]
     scene = np.zeros((1, 2)) if scene is None else scene
-    left: rrb.Container | rrb.SpaceView = views.top_down("/map", "map (top-down, m)", scene)
+    left: rrb.Container | rrb.SpaceView = views.top_down("/map", "map (top-down, m)", scene, margin=1.3)
     if images:
         left = rrb.Vertical(
             left,
@@ -132,9 +132,9 @@ def scene(first: RunResult) -> np.ndarray:
     return np.concatenate([d.observer, d.target[:, :2], *boxes])
 
 
-def record(rec: rr.RecordingStream, first: RunResult, runs: list[RunSummary], table_md: str) -> None:
-    """Log run 0 in full (``runs[0]`` is its evaluation), the Monte Carlo curves over all
-    runs, and the results table."""
+def record_run(rec: rr.RecordingStream, first: RunResult, zero: RunSummary) -> None:
+    """Log run 0 in full (``zero`` is its evaluation): the map, the angles and range, its errors,
+    the image stage; what the Monte Carlo runs add comes with :func:`record_runs`."""
     d = first.data
     t = d.t
     rec.log("/map", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
@@ -160,7 +160,23 @@ def record(rec: rr.RecordingStream, first: RunResult, runs: list[RunSummary], ta
             draw.covariance_ellipses(rec, f"{base}/ellipse", TL, t, est.position, est.covariance, rgb)
         if est.forecast is not None:
             draw.polylines(rec, f"{base}/forecast", TL, t, est.forecast, rgb, -0.75 * x)
-    for origin, c in plots(first, runs).items():
+    _curves(rec, first, plots(first, [zero]), over_runs=False)
+    if first.images is not None:
+        record_images(rec, first)
+
+
+def record_runs(rec: rr.RecordingStream, first: RunResult, runs: list[RunSummary], table_md: str) -> None:
+    """Log the curves over all runs and the results table with how to read the recording."""
+    _curves(rec, first, plots(first, runs), over_runs=True)
+    text = table_md + "\n\n" + how_to_read(first, len(runs))
+    rec.log("/summary", rr.TextDocument(text, media_type=rr.MediaType.MARKDOWN), static=True)
+
+
+def _curves(rec: rr.RecordingStream, first: RunResult, curves: dict[str, views.Curves], over_runs: bool) -> None:
+    """The plots' series: run 0's, or (``over_runs``) those over the Monte Carlo runs."""
+    for origin, c in curves.items():
+        if origin.startswith("/monte_carlo") != over_runs:
+            continue
         for key, values in c.series.items():
             est = first.estimators.get(key)
             if est is not None:
@@ -168,10 +184,6 @@ def record(rec: rr.RecordingStream, first: RunResult, runs: list[RunSummary], ta
             else:
                 rgb, w = SERIES.get(key, GREY), 1.5 if key == "truth" else 1.0
             draw.scalars(rec, f"{origin}/{key}", TL, c.t, values, c.label(key), rgb, w)
-    text = table_md + "\n\n" + how_to_read(first, len(runs))
-    rec.log("/summary", rr.TextDocument(text, media_type=rr.MediaType.MARKDOWN), static=True)
-    if first.images is not None:
-        record_images(rec, first)
 
 
 def how_to_read(first: RunResult, runs: int) -> str:

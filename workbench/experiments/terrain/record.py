@@ -498,8 +498,8 @@ def layout(first: RunResult, runs: list[RunSummary]) -> rrb.Blueprint:
     return blueprint(list(first.estimates))
 
 
-def record(rec: rr.RecordingStream, first: RunResult, runs: list[RunSummary], table_md: str) -> None:
-    """Log run 0 (``runs[0]`` is its evaluation): scene, cameras, the search, the baseline's
+def record_run(rec: rr.RecordingStream, first: RunResult, zero: RunSummary) -> None:
+    """Log run 0 (``zero`` is its evaluation): scene, cameras, the search, the baseline's
     tie points, the halftone models and their ground error maps."""
     sc = first.scene
     origin = local_origin(sc)
@@ -510,8 +510,12 @@ def record(rec: rr.RecordingStream, first: RunResult, runs: list[RunSummary], ta
         _search(rec, first, origin)
     _baseline(rec, first, origin)
     _halftones(rec, first, origin)
-    for name, err in runs[0].ground_maps.items():
+    for name, err in zero.ground_maps.items():
         _error_map(rec, name, err)
     _orthophoto(rec, sc, first.estimates[_best(list(first.estimates))], bounds)
-    text = narrow_tables(table_md) + "\n" + legend(first, origin)
+
+
+def record_runs(rec: rr.RecordingStream, first: RunResult, runs: list[RunSummary], table_md: str) -> None:
+    """Log the results table (the Monte Carlo statistics) and how to read the recording."""
+    text = narrow_tables(table_md) + "\n" + legend(first, local_origin(first.scene))
     rec.log("/summary", rr.TextDocument(text, media_type=rr.MediaType.MARKDOWN), static=True)
