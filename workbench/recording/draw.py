@@ -47,6 +47,21 @@ def emphasis(estimator) -> float:
     return 1.0 if estimator.builtin else 2.5
 
 
+def plot_series(rec: rr.RecordingStream, timeline: str, curves: dict, estimators: dict, keep=lambda origin: True,
+                others: dict | None = None) -> None:
+    """Every series of the plots' ``curves`` (view origin -> ``layout.Curves``) whose origin
+    ``keep`` accepts, at ``<origin>/<key>``: an estimator's in its colour (a plugin's wider), the
+    rest by ``others`` (key -> (colour, width)), else grey and thin (a consistency band)."""
+    others = others or {}
+    for origin, c in curves.items():
+        if not keep(origin):
+            continue
+        for key, values in c.series.items():
+            est = estimators.get(key)
+            rgb, w = (est.color, 1.5 * emphasis(est)) if est is not None else others.get(key, ((150, 150, 150), 1.0))
+            scalars(rec, f"{origin}/{key}", timeline, c.t, values, c.label(key), rgb, w)
+
+
 def times(timeline: str, seconds: np.ndarray) -> rr.TimeColumn:
     return rr.TimeColumn(timeline, duration=np.asarray(seconds, float))
 

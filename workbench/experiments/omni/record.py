@@ -183,27 +183,16 @@ def record_run(rec: rr.RecordingStream, first: RunResult, zero: RunSummary) -> N
         if est.attempts:
             pt, clouds = _pending(first, est.attempts)
             draw.point_sets(rec, f"{base}/pending", TL, pt, clouds, (255, 140, 0), 0.12, 0.1)
-    _curves(rec, first, plots(first, [zero]), over_runs=False)
+    draw.plot_series(rec, TL, plots(first, [zero]), first.estimators, lambda o: not o.startswith("/monte_carlo"))
     if first.images is not None and first.images.frames:
         _images(rec, first)
 
 
 def record_runs(rec: rr.RecordingStream, first: RunResult, runs: list[RunSummary], table_md: str) -> None:
     """Log the curves over all runs and the results table with how to read the recording."""
-    _curves(rec, first, plots(first, runs), over_runs=True)
+    draw.plot_series(rec, TL, plots(first, runs), first.estimators, lambda o: o.startswith("/monte_carlo"))
     text = table_md + "\n\n" + how_to_read(first, len(runs))
     rec.log("/summary", rr.TextDocument(text, media_type=rr.MediaType.MARKDOWN), static=True)
-
-
-def _curves(rec: rr.RecordingStream, first: RunResult, curves: dict[str, views.Curves], over_runs: bool) -> None:
-    """The plots' series: run 0's, or (``over_runs``) those over the Monte Carlo runs."""
-    for origin, c in curves.items():
-        if origin.startswith("/monte_carlo") != over_runs:
-            continue
-        for key, values in c.series.items():
-            est = first.estimators.get(key)
-            rgb, w = (est.color, 1.5 * draw.emphasis(est)) if est is not None else ((150, 150, 150), 1.0)
-            draw.scalars(rec, f"{origin}/{key}", TL, c.t, values, c.label(key), rgb, w)
 
 
 def how_to_read(first: RunResult, runs: int) -> str:

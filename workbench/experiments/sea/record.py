@@ -31,9 +31,8 @@ from workbench.recording import draw
 from workbench.recording import layout as views
 
 TL = "time"
-GREY = (150, 150, 150)
-SERIES = {"truth": draw.color("truth on white"), "measured": draw.color("measured")}
-"""What is not an estimator in the plots; the bands are grey."""
+SERIES = {"truth": (draw.color("truth on white"), 1.5), "measured": (draw.color("measured"), 1.0)}
+"""What is not an estimator in the plots (colour, width); the bands are grey."""
 
 
 def plots(first: RunResult, runs: list[RunSummary]) -> dict[str, views.Curves]:
@@ -160,30 +159,18 @@ def record_run(rec: rr.RecordingStream, first: RunResult, zero: RunSummary) -> N
             draw.covariance_ellipses(rec, f"{base}/ellipse", TL, t, est.position, est.covariance, rgb)
         if est.forecast is not None:
             draw.polylines(rec, f"{base}/forecast", TL, t, est.forecast, rgb, -0.75 * x)
-    _curves(rec, first, plots(first, [zero]), over_runs=False)
+    draw.plot_series(rec, TL, plots(first, [zero]), first.estimators, lambda o: not o.startswith("/monte_carlo"),
+                     SERIES)
     if first.images is not None:
         record_images(rec, first)
 
 
 def record_runs(rec: rr.RecordingStream, first: RunResult, runs: list[RunSummary], table_md: str) -> None:
     """Log the curves over all runs and the results table with how to read the recording."""
-    _curves(rec, first, plots(first, runs), over_runs=True)
+    draw.plot_series(rec, TL, plots(first, runs), first.estimators, lambda o: o.startswith("/monte_carlo"),
+                     SERIES)
     text = table_md + "\n\n" + how_to_read(first, len(runs))
     rec.log("/summary", rr.TextDocument(text, media_type=rr.MediaType.MARKDOWN), static=True)
-
-
-def _curves(rec: rr.RecordingStream, first: RunResult, curves: dict[str, views.Curves], over_runs: bool) -> None:
-    """The plots' series: run 0's, or (``over_runs``) those over the Monte Carlo runs."""
-    for origin, c in curves.items():
-        if origin.startswith("/monte_carlo") != over_runs:
-            continue
-        for key, values in c.series.items():
-            est = first.estimators.get(key)
-            if est is not None:
-                rgb, w = est.color, 1.5 * draw.emphasis(est)
-            else:
-                rgb, w = SERIES.get(key, GREY), 1.5 if key == "truth" else 1.0
-            draw.scalars(rec, f"{origin}/{key}", TL, c.t, values, c.label(key), rgb, w)
 
 
 def how_to_read(first: RunResult, runs: int) -> str:
