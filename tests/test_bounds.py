@@ -1,0 +1,121 @@
+"""The Cramér-Rao bounds (workbench.estimation.bounds) against what they must be: a Kalman
+filter attains the filtering bound and the RTS smoother the smoothing bound on a linear-Gaussian
+model (to Monte Carlo error); both shrink with the noise and vanish with it; with noise-free
+dynamics the recursion is the batch Fisher information; on the sea measurement model it equals
+a Fisher information computed directly by finite differences."""
+
+import numpy as np
+
+from workbench.estimation import bounds, kalman
+from workbench.experiments.sea import geometry
+
+DT, T = 0.5, 40
+
+
+def model(r: float = 1.0, q: float = 0.05):
+    F = kalman.cv_transition(DT, axes=1)
+    Q = kalman.cv_noise_continuous(DT, q, axes=1)
+    H = np.array([[1.0, 0.0]])
+    R = np.array([[r**2]])
+    P0 = np.diag([4.0, 1.0])
+    return F, Q, H, R, P0
+
+
+def test_kalman_filter_and_rts_smoother_attain_their_bounds():
+    F, Q, H, R, P0 = model()
+    info = np.broadcast_to(bounds.measurement_information(H[None], R[None])[0], (T, 2, 2))
+    filt = bounds.filtering(P0, F, Q, info)
+    smooth = bounds.smoothing(filt, F, Q)
+    rng = np.random.default_rng(7)
+    N = 4000
+    ef, es = np.zeros((N, T, 2)), np.zeros((N, T, 2))
+    for i in range(N):
+        x = rng.multivariate_normal([0.0, 1.0], P0)
+        xs, zs = [], []
+        for k in range(T):
+            if k:
+                x = F @ x + rng.multivariate_normal([0.0, 0.0], Q)
+            xs.append(x)
+            zs.append(H @ x + rng.normal(0.0, np.sqrt(R[0, 0]), 1))
+        m, P = np.array([0.0, 1.0]), P0.copy()
+        means, covs, preds = [], [], []
+        for k in range(T):
+            if k:
+                m, P = kalman.predict(m, P, F, Q)
+            preds.append((m, P))
+            m, P, _ = kalman.update(m, P, zs[k] - H @ m, H, R)
+            means.append(m)
+            covs.append(P)
+        sm = [means[-1]]
+        for k in range(T - 2, -1, -1):
+            mp, Pp = F @ means[k], F @ covs[k] @ F.T + Q
+            C = covs[k] @ F.T @ np.linalg.inv(Pp)
+            sm.insert(0, means[k] + C @ (sm[0] - mp))
+        ef[i], es[i] = np.array(xs) - np.array(means), np.array(xs) - np.array(sm)
+    tol = 4 * np.sqrt(2 / N)  # the relative Monte Carlo error of a variance, four sigmas
+    for errors, bound in ((ef, filt), (es, smooth)):
+        mse = (errors**2).mean(axis=0)
+        ratio = mse / np.diagonal(bound, axis1=1, axis2=2)
+        assert np.all(np.abs(ratio - 1) < tol), ratio.min()
+    assert np.all(np.diagonal(smooth, axis1=1, axis2=2) <= np.diagonal(filt, axis1=1, axis2=2) + 1e-12)
+
+
+def test_the_bounds_shrink_with_the_noise_and_vanish_with_it():
+    F, Q, H, R, P0 = model()
+    previous = None
+    for c in (1.0, 0.1, 0.01, 1e-8):
+        info = np.broadcast_to(bounds.measurement_information(H[None], c * R[None])[0], (T, 2, 2))
+        filt = bounds.filtering(P0, F, c * Q, info)
+        smooth = bounds.smoothing(filt, F, c * Q)
+        now = np.stack([np.diagonal(filt, axis1=1, axis2=2), np.diagonal(smooth, axis1=1, axis2=2)])
+        if previous is not None:
+            assert np.all(now[:, 2:] < previous[:, 2:])
+        previous = now
+    assert previous[:, 2:].max() < 1e-6  # from two measurements on, position and velocity are known
+
+
+def test_noise_free_dynamics_give_the_batch_fisher_information():
+    F, _, H, R, P0 = model()
+    info = np.broadcast_to(bounds.measurement_information(H[None], R[None])[0], (T, 2, 2))
+    filt = bounds.filtering(P0, F, np.zeros((2, 2)), info)
+    for k in (0, 5, T - 1):
+        Fi = np.linalg.inv(np.linalg.matrix_power(F, k))
+        J = Fi.T @ np.linalg.inv(P0) @ Fi
+        for j in range(k + 1):
+            G = H @ np.linalg.matrix_power(F, j) @ Fi  # z_j as a function of x_k
+            J += G.T @ np.linalg.inv(R) @ G
+        assert np.allclose(np.linalg.inv(filt[k]), J, rtol=1e-9)
+
+
+def test_the_recursion_equals_a_direct_numerical_fisher_information():
+    """Sea's azimuth and elevation of a constant-velocity target from a moving camera, no process
+    noise: the recursion (H at the truth) against the Fisher information of x_0 computed from the
+    whole nonlinear measurement function by central differences."""
+    h, dt, steps = 3.0, 0.5, 12
+    x0 = np.array([400.0, 600.0, -3.0, -3.1])
+    F = kalman.cv_transition(dt)
+    observer = np.stack([2.55 * dt * np.arange(steps), 4.33 * dt * np.arange(steps)], axis=1)
+    R = np.diag([np.radians(0.88 / 60) ** 2, np.radians(1.56 / 60) ** 2])
+
+    def z(x):
+        xs = np.stack([np.linalg.matrix_power(F, k) @ x for k in range(steps)])
+        a, b = geometry.angles(xs[:, :2], observer, 0.0, h)
+        return np.stack([a, b], axis=1).ravel()
+
+    eps = 1e-4
+    Jz = np.stack([(z(x0 + eps * e) - z(x0 - eps * e)) / (2 * eps) for e in np.eye(4)], axis=1)
+    Rbig = np.kron(np.eye(steps), R)
+    P0 = np.diag([1e4, 1e4, 10.0, 10.0])
+    direct = np.linalg.inv(P0) + Jz.T @ np.linalg.solve(Rbig, Jz)
+    xs = np.stack([np.linalg.matrix_power(F, k) @ x0 for k in range(steps)])
+    H = np.zeros((steps, 2, 4))
+    H[:, :, :2] = geometry.angle_jacobian(xs[:, :2], observer, h)
+    filt = bounds.filtering(P0, F, np.zeros((4, 4)), bounds.measurement_information(H, R))
+    Fk = np.linalg.matrix_power(F, steps - 1)
+    recursion = Fk.T @ np.linalg.inv(filt[-1]) @ Fk  # the information of x_{N-1}, mapped back to x_0
+    assert np.allclose(recursion, direct, rtol=1e-5, atol=1e-9 * np.abs(direct).max())
+
+
+def test_efficiency():
+    assert bounds.efficiency(2.0, 4.0) == 1.0 and bounds.efficiency(3.0, 4.0) == 1.5
+    assert np.isnan(bounds.efficiency(1.0, 0.0)) and np.isnan(bounds.efficiency(np.nan, 1.0))
