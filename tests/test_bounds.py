@@ -119,3 +119,37 @@ def test_the_recursion_equals_a_direct_numerical_fisher_information():
 def test_efficiency():
     assert bounds.efficiency(2.0, 4.0) == 1.0 and bounds.efficiency(3.0, 4.0) == 1.5
     assert np.isnan(bounds.efficiency(1.0, 0.0)) and np.isnan(bounds.efficiency(np.nan, 1.0))
+
+
+def oracle(data, cfg):
+    """An estimator handed the truth (1 cm off): it must show itself as below the bound."""
+    from workbench.experiments.sea.estimate import Estimate
+
+    return Estimate(position=data.target[:, :2] + 0.01)
+
+
+def test_sea_estimators_are_not_below_their_bounds(tmp_path):
+    """Sea's paper scenario: every estimator at or above the bound it is held to (filtering,
+    smoothing, or the fixed-lag smoother's own) within three Monte Carlo standard errors; one that
+    is handed the truth shows itself as below it, in the metrics and the table; the recording
+    has the bounds beside the RMSE curves, the sweep's rows a run's own bound."""
+    import workbench
+    from workbench.recording import readback
+
+    res = workbench.run("sea", runs=24, estimators=["+fixed-lag", oracle], out=tmp_path / "s.rrd")
+    stats = res.metrics["estimators"]
+    kinds = {n: e["bound_kind"] for n, e in stats.items()}
+    assert kinds["ekf"] == "filtering" and kinds["gtsam"] == "smoothing" and kinds["fixed-lag"] == "fixed-lag 5 s"
+    for name, e in stats.items():
+        for q, eff in e["efficiency"].items():
+            if name == "oracle":
+                continue
+            assert eff + 3 * e["efficiency_se"][q] >= 1.0, (name, q, eff)
+    assert stats["oracle"]["efficiency"]["position"] < 0.01 and "oracle (position)" in res.table
+    # the smoother's bound is under the fixed lag's, which is under the filter's
+    b = {n: stats[n]["bound"]["position"] for n in ("ekf", "fixed-lag", "gtsam")}
+    assert b["gtsam"] < b["fixed-lag"] < b["ekf"]
+    t, v = readback.series(tmp_path / "s.rrd", "/monte_carlo/position_rmse/bound_smoothing")
+    assert len(t) == len(res.data.t) and np.all(v > 0)
+    row = workbench.experiment("sea").run_metrics(res.summaries[3], res.config)["ekf"]
+    assert row["position_bound"] > 0 and row["position_efficiency"] > 0.5

@@ -72,7 +72,7 @@ def test_an_altered_config_is_caught(recorded, tmp_path):
         pass
     r = wb("replay", str(path))
     assert r.returncode == 1, r.stdout + r.stderr
-    assert "does not reproduce" in r.stdout and "estimators.rls.rmse" in r.stdout
+    assert "does not reproduce" in r.stdout and "in estimators.rls (" in r.stdout and "\n  estimators.rls." in r.stdout
     assert "estimators.ekf" not in r.stdout and "estimators.geometric" not in r.stdout
 
 

@@ -25,8 +25,9 @@ from workbench.recording import readback
 from workbench.sweeps import grid, runner
 
 SEA = ("--set", "duration=10")
-ROWS = 5 * 8 + 9
-"""Rows a sea run gives (bar the timings): 8 figures of the six default estimators, and the ekf's ANEES."""
+ROWS = 5 * 10 + 11
+"""Rows a sea run gives (bar the timings): 10 figures of the six default estimators (the position's
+Cramér-Rao bound and efficiency among them), and the ekf's ANEES."""
 
 
 def rows(folder: Path) -> dict:

@@ -251,6 +251,16 @@ class Estimator:
     source: str = "built-in"
     ref: str | None = None
     indefinite: str = ""  # why its covariance may be indefinite (then not checked to be PSD): a known flaw
+    lag: float | None = None  # seconds of data after step k its estimate of k uses (None: 0 if causal, else all)
+
+    @property
+    def delay(self) -> float:
+        """The seconds of data after a step its estimate of that step uses: 0 for a filter, ``inf``
+        for a smoother of the whole run, the lag of a fixed-lag smoother. Which Cramér-Rao bound
+        it is held to follows: filtering, smoothing, or the bound of that lag."""
+        if self.lag is not None:
+            return float(self.lag)
+        return 0.0 if self.causal else float("inf")
 
     @property
     def builtin(self) -> bool:
@@ -288,13 +298,15 @@ class Estimator:
 
             return plugins.find, (self.experiment, self.ref, self.name, self.color)
         return Estimator, (self.name, self.run, self.color, self.description, self.causal, self.covariances,
-                           self.experiment, self.source, self.ref, self.indefinite)
+                           self.experiment, self.source, self.ref, self.indefinite, self.lag)
 
     def describe(self) -> dict:
         out = {"description": self.description, "causal": self.causal, "covariances": self.covariances,
                "source": self.source, "color": list(self.color)}
         if self.indefinite:
             out["indefinite_covariance"] = self.indefinite
+        if self.lag is not None:
+            out["lag_seconds"] = self.lag
         return out
 
 

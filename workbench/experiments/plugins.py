@@ -43,12 +43,14 @@ PLUGIN_COLORS: tuple[Color, ...] = ((0, 100, 255), (150, 220, 0), (255, 0, 255),
 
 
 def estimator(*, name: str | None = None, description: str | None = None, causal: bool = False,
-              covariances: bool = False, color: Color | None = None) -> Callable:
-    """Decorate a plugin function with what the tables, metrics and recordings show of it."""
+              covariances: bool = False, color: Color | None = None, lag: float | None = None) -> Callable:
+    """Decorate a plugin function with what the tables, metrics and recordings show of it;
+    ``lag``: the seconds of data after a step its estimate of that step uses (a fixed-lag
+    smoother's; by default 0 if ``causal``, else the whole run), which decides its Cramér-Rao bound."""
 
     def mark(fn: Callable) -> Callable:
         fn.__workbench__ = {"name": name, "description": description, "causal": causal,
-                            "covariances": covariances, "color": color}
+                            "covariances": covariances, "color": color, "lag": lag}
         return fn
 
     return mark
@@ -134,8 +136,10 @@ def from_function(exp: Experiment, fn: Any, name: str | None, ref: str | None, s
     doc = (inspect.getdoc(fn) or "").strip().splitlines()
     description = meta.get("description") or (doc[0] if doc else f"{name} (a plugin)")
     rgb = tuple(meta.get("color") or color or plugin_color(name))
+    lag = meta.get("lag")
     return Estimator(name, fn, rgb, description, bool(meta.get("causal", False)),
-                     bool(meta.get("covariances", False)), exp.name, source, ref)
+                     bool(meta.get("covariances", False)), exp.name, source, ref,
+                     lag=float(lag) if lag is not None else None)
 
 
 def load(spec: str) -> Callable:

@@ -44,7 +44,12 @@ def replay(file: Path = typer.Argument(..., help="A .rrd recording."),
     typer.echo(f"replaying {stored.experiment} ({cfg.runs} run(s)), recorded as: {stored.command or '?'}")
     compared, diff = provenance.replay(stored, jobs)
     if diff:
-        typer.echo(f"does not reproduce: {len(diff)} of {compared} numbers differ")
+        groups: dict[str, int] = {}
+        for line in diff:
+            key = ".".join(line.split(":")[0].split(".")[:2])
+            groups[key] = groups.get(key, 0) + 1
+        typer.echo(f"does not reproduce: {len(diff)} of {compared} numbers differ, in "
+                   + ", ".join(f"{k} ({n})" for k, n in groups.items()))
         typer.echo("\n".join(f"  {line}" for line in diff[:25]) + ("\n  ..." if len(diff) > 25 else ""))
         raise typer.Exit(DIFFERS)
     typer.echo(f"reproduces: all {compared} numbers equal to {provenance.TOLERANCE:g} (relative), timings aside")

@@ -159,7 +159,7 @@ def with_lag(lag: float):
     """The fixed-lag smoother with another lag, as an estimator function (for the API)."""
 
     @estimator(name=f"fixed-lag-{lag:g}s", description=f"GTSAM fixed-lag smoother, each keyframe read {lag:g} s later",
-               causal=True, covariances=True)
+               causal=True, covariances=True, lag=lag)
     def fixed_lag_at(data: OmniData, cfg: OmniConfig, ctx: RunContext) -> SlamEstimate:
         return run(data, cfg, ctx.shared("keyframes", lambda: graph.keyframes(data, cfg)), lag, ctx.record,
                    f"fixed-lag-{lag:g}s")
@@ -168,7 +168,7 @@ def with_lag(lag: float):
 
 
 @estimator(description=f"GTSAM IncrementalFixedLagSmoother, each keyframe read {LAG:g} s later "
-           "(online, fixed delay; landmarks kept in the window)", causal=True, covariances=True)
+           "(online, fixed delay; landmarks kept in the window)", causal=True, covariances=True, lag=LAG)
 def fixed_lag(data: OmniData, cfg: OmniConfig, ctx: RunContext) -> SlamEstimate:
     """The fixed-lag smoother on the run's shared keyframes (the ``isam2``/``gtsam-batch`` ones)."""
     return run(data, cfg, ctx.shared("keyframes", lambda: graph.keyframes(data, cfg)), LAG, ctx.record)

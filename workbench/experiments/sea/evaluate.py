@@ -15,6 +15,7 @@ import numpy as np
 
 from workbench.estimation import metrics
 from workbench.estimation.angles import to_arcmin, wrap
+from workbench.experiments.sea import bounds as sea_bounds
 from workbench.experiments.sea.config import SeaConfig
 from workbench.experiments.sea.estimate import Estimate
 from workbench.experiments.sea.paper import TABLE2
@@ -51,6 +52,8 @@ class RunSummary:
     simulated: dict[str, np.ndarray] | None = None  # errors on simulated angles (``from_images``)
     image: dict | None = None                       # the image stage's errors and flags
     failed: dict[str, str] = field(default_factory=dict)  # estimators that failed: one line each
+    delays: dict[str, float] = field(default_factory=dict)  # each estimator's delay (its bound)
+    bounds: dict[float, dict[str, np.ndarray]] = field(default_factory=dict)  # delay -> quantity -> (T,)
 
 
 def summarise(result: RunResult, cfg: SeaConfig, run: int) -> RunSummary:
@@ -85,9 +88,30 @@ def summarise(result: RunResult, cfg: SeaConfig, run: int) -> RunSummary:
     if result.simulated is not None:
         sim_data, sim = result.simulated
         simulated = {name: errors(sim_data, e) for name, e in sim.items()}
+    delays = {n: result.estimators[n].delay for n in result.estimates if n in result.estimators}
+    crb = {}
+    if st is None:  # angles from images have the image stage's noise, not the model's: no bound
+        truth = sea_bounds.Truth(data.target, data.observer, data.seen, data.disturbed)
+        model = sea_bounds.Model(data.dt, data.height, data.sigma_acc, data.sigma_alpha, data.sigma_beta,
+                                 data.sigma_observer, cfg.prior_speed,
+                                 float(np.deg2rad(cfg.impulse_sigma_deg)) if cfg.scenario == "impulse" else 0.0)
+        b = sea_bounds.Bounds(model, [truth])
+        crb = {d: {q: v[0] for q, v in b.variances(d).items()} for d in {0.0, float("inf"), *delays.values()}}
     return RunSummary(run, errs, nees, fc, unusable,
                       {n: e.seconds for n, e in result.estimates.items()}, seen, data.t,
-                      transient, simulated, image, dict(result.failed))
+                      transient, simulated, image, dict(result.failed), delays, crb)
+
+
+def bound_variances(runs: list[RunSummary], delay: float) -> dict[str, np.ndarray] | None:
+    """The runs' Cramér-Rao variance bounds for that delay, quantity -> ``(runs, T)`` (rad^2 for
+    the angles), or None where there are none (angles from images)."""
+    if not runs[0].bounds or delay not in runs[0].bounds:
+        return None
+    return {q: np.stack([r.bounds[delay][q] for r in runs]) for q in sea_bounds.QUANTITIES}
+
+
+def bound_kind(delay: float) -> str:
+    return "filtering" if delay == 0 else "smoothing" if np.isinf(delay) else f"fixed-lag {delay:g} s"
 
 
 def forecast_errors(data: SeaData, est: Estimate) -> tuple[np.ndarray, np.ndarray]:
@@ -157,7 +181,8 @@ def statistics(cfg: SeaConfig, runs: list[RunSummary], label: str = "") -> dict:
                     "paper_table2": TABLE2, "estimators": {}}
     scale = np.array([1.0, 1.0, to_arcmin(1.0), to_arcmin(1.0), 1.0])
     for name in names:
-        E = np.stack([r.errors[name] for r in runs]) * scale  # (runs, T, 5)
+        raw = np.stack([r.errors[name] for r in runs])
+        E = raw * scale  # (runs, T, 5)
         b = metrics.bias(E, axis=1)
         rm = metrics.rmse(E, axis=1)
         mx = metrics.max_abs(E, axis=1)
@@ -169,6 +194,12 @@ def statistics(cfg: SeaConfig, runs: list[RunSummary], label: str = "") -> dict:
             "coverage": float(np.mean(np.isfinite(E[..., 0]))),
             "seconds": float(np.mean([r.seconds[name] for r in runs])),
         }
+        delay = runs[0].delays.get(name, 0.0)
+        V = bound_variances(runs, delay)
+        if V is not None:
+            entry["bound"], entry["efficiency"], entry["efficiency_se"] = sea_bounds.summary(
+                V, raw, {"alpha": to_arcmin(1.0), "beta": to_arcmin(1.0)})
+            entry["bound_kind"] = bound_kind(delay)
         if name in runs[0].transient:
             D = np.stack([r.transient[name] for r in runs]) * scale[2]
             entry["recovery"] = _recovery(cfg, runs[0].t, D, cfg.sigma_alpha_arcmin)
@@ -192,7 +223,7 @@ def statistics(cfg: SeaConfig, runs: list[RunSummary], label: str = "") -> dict:
         result["images"] = image_statistics(runs)
     if runs[0].simulated is not None:
         sim = [replace(r, errors=r.simulated, nees={}, forecast_err={}, forecast_unusable={}, transient={},
-                       simulated=None, image=None, failed={}) for r in runs]
+                       simulated=None, image=None, failed={}, bounds={}) for r in runs]
         result["simulated"] = {"note": "the same runs' estimators on the simulated angles",
                                "estimators": statistics(cfg, sim, label)["estimators"]}
     return result
@@ -302,14 +333,16 @@ def _recovery(cfg: SeaConfig, t: np.ndarray, transient: np.ndarray, level: float
 
 
 RUN_METRICS = {"position_rmse": "m", "rmse_x": "m", "rmse_y": "m", "rmse_alpha": "arcmin", "rmse_beta": "arcmin",
-               "bias_x": "m", "bias_y": "m", "anees": "4 states", "coverage": "fraction", "seconds": "s"}
+               "bias_x": "m", "bias_y": "m", "anees": "4 states", "coverage": "fraction", "seconds": "s",
+               "position_bound": "m", "position_efficiency": "RMSE / bound"}
 """The per-run figures of a sweep's tidy table, and their units."""
 
 
 def run_metrics(summary: RunSummary, cfg: SeaConfig) -> dict[str, dict[str, float]]:
     """One run's figures per estimator (a sweep's rows): RMSEs and biases over the run's steps
     (so their mean over runs is Table 2's), the position RMSE, the time-averaged NEES, the
-    share of steps with an estimate, the seconds."""
+    share of steps with an estimate, the seconds; the position's Cramér-Rao bound from this run
+    alone and the efficiency against it."""
     out = {}
     for name, E in summary.errors.items():
         with np.errstate(invalid="ignore"), warnings.catch_warnings():
@@ -322,5 +355,9 @@ def run_metrics(summary: RunSummary, cfg: SeaConfig) -> dict[str, dict[str, floa
                      "coverage": float(np.mean(np.isfinite(E[:, 0]))), "seconds": float(summary.seconds[name])}
             if name in summary.nees:
                 entry["anees"] = float(np.nanmean(summary.nees[name]))
+            V = bound_variances([summary], summary.delays.get(name, 0.0))
+            if V is not None:
+                bound, eff, _ = sea_bounds.summary(V, E[None], {})
+                entry["position_bound"], entry["position_efficiency"] = bound["position"], eff["position"]
         out[name] = entry
     return out

@@ -74,7 +74,7 @@ def with_lag(lag: float):
     """The fixed-lag smoother with another lag, as an estimator function (for the API)."""
 
     @estimator(name=f"fixed-lag-{lag:g}s", description=f"GTSAM fixed-lag smoother, each step read {lag:g} s later",
-               causal=True, covariances=True)
+               causal=True, covariances=True, lag=lag)
     def fixed_lag_at(data: SeaData, cfg: SeaConfig, ctx: RunContext) -> Estimate:
         return run(data, cfg, lag, ctx.shared("factors", lambda: smoother.FactorSet(data, cfg)))
 
@@ -82,7 +82,7 @@ def with_lag(lag: float):
 
 
 @estimator(description=f"GTSAM IncrementalFixedLagSmoother, each step read {LAG:g} s later (online, fixed delay)",
-           causal=True, covariances=True)
+           causal=True, covariances=True, lag=LAG)
 def fixed_lag(data: SeaData, cfg: SeaConfig, ctx: RunContext) -> Estimate:
     """The fixed-lag smoother on the run's shared factors (the ``gtsam``/``isam2`` ones)."""
     return run(data, cfg, LAG, ctx.shared("factors", lambda: smoother.FactorSet(data, cfg)))

@@ -25,13 +25,14 @@ import rerun.blueprint as rrb
 
 from workbench.estimation import metrics
 from workbench.estimation.angles import to_arcmin
-from workbench.experiments.sea.evaluate import RunSummary, curves
+from workbench.experiments.sea.evaluate import RunSummary, bound_variances, curves
 from workbench.experiments.sea.run import RunResult
 from workbench.recording import draw
 from workbench.recording import layout as views
 
 TL = "time"
-SERIES = {"truth": (draw.color("truth on white"), 1.5), "measured": (draw.color("measured"), 1.0)}
+SERIES = {"truth": (draw.color("truth on white"), 1.5), "measured": (draw.color("measured"), 1.0),
+          "bound_filtering": ((110, 110, 110), 2.0), "bound_smoothing": ((40, 40, 40), 2.0)}
 """What is not an estimator in the plots (colour, width); the bands are grey."""
 
 
@@ -56,8 +57,14 @@ def plots(first: RunResult, runs: list[RunSummary]) -> dict[str, views.Curves]:
            "/errors/alpha": views.Curves(t, {n: to_arcmin(v[:, 2]) for n, v in e.items()}, "arcmin"),
            "/errors/beta": views.Curves(t, {n: to_arcmin(v[:, 3]) for n, v in e.items()}, "arcmin")}
     mc = curves(runs)
-    out["/monte_carlo/position_rmse"] = views.Curves(
-        t, {n: c["position_rmse"] for n, c in mc.items() if "position_rmse" in c}, "m")
+    rmse = views.Curves(t, {n: c["position_rmse"] for n, c in mc.items() if "position_rmse" in c}, "m")
+    for key, delay in (("bound_filtering", 0.0), ("bound_smoothing", float("inf"))):
+        V = bound_variances(runs, delay)
+        if V is not None:
+            rmse.series[key] = np.sqrt(V["position"].mean(axis=0))
+            rmse.fixed += (key,)
+            rmse.labels[key] = f"Cramér-Rao, {key[6:]}"
+    out["/monte_carlo/position_rmse"] = rmse
     nees = views.Curves(t, {n: c["nees"] for n, c in mc.items() if "nees" in c})
     if nees.series:
         lo, hi = metrics.chi2_band(4, len(runs))
@@ -91,7 +98,7 @@ def blueprint(curves: dict[str, views.Curves], images: bool = False, span: tuple
         name="errors (run 0)",
     )
     mc = rrb.Vertical(
-        plot("/monte_carlo/position_rmse", "position RMSE over runs (m)"),
+        plot("/monte_carlo/position_rmse", "position RMSE over runs (m), grey: Cramér-Rao bounds"),
         plot("/monte_carlo/nees", "NEES over runs (4 states), grey: 95 % band"),
         name="over runs",
     )
@@ -187,7 +194,9 @@ def how_to_read(first: RunResult, runs: int) -> str:
         "- angles and range: azimuth alpha from the course and elevation beta below the horizon (arcmin), "
         "horizontal range d (m), for the truth, the measurements and each estimator.",
         "- errors (run 0): truth minus estimate in x, y (m) and the angles (arcmin).",
-        f"- over runs ({runs} runs): the position RMSE at each step over the runs; the NEES of the estimators with "
+        f"- over runs ({runs} runs): the position RMSE at each step over the runs, with the Cramér-Rao bounds of a "
+        "filter (light grey) and of a smoother of the whole run (dark grey): no estimator can be below the one it "
+        "is held to for long (the results' efficiency is RMSE / bound); the NEES of the estimators with "
         f"a covariance, averaged over the runs, with its 95 % band ({lo:.2f}-{hi:.2f} for 4 states): inside it "
         "the covariance is consistent with the errors, above it the estimator is overconfident.",
         "- a plot's title names an estimator that is off its scale (its own values would flatten the others); "
