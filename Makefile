@@ -27,9 +27,7 @@ screenshots: $(STAMP)
 	test -e recordings/sea-paper.rrd || $(BIN)/workbench demo
 	$(BIN)/workbench screenshot recordings/*.rrd --out recordings/screenshots --force
 	mkdir -p docs/images
-	cp recordings/screenshots/omni-paper.default.png docs/images/omni.png
-	cp recordings/screenshots/sea-paper.default.png docs/images/sea.png
-	cp recordings/screenshots/terrain-common.default.png docs/images/terrain.png
+	$(BIN)/python -c "import cv2, sys; [cv2.imwrite(f'docs/images/{o}.png', cv2.resize(cv2.imread(f'recordings/screenshots/{i}.default.png'), (1200, 750), interpolation=cv2.INTER_AREA), [cv2.IMWRITE_PNG_COMPRESSION, 9]) for o, i in (('omni', 'omni-paper'), ('sea', 'sea-paper'), ('terrain', 'terrain-common'))]"
 
 lint: $(STAMP)
 	$(BIN)/python -m ruff check workbench tests benchmarks
