@@ -153,3 +153,28 @@ def test_sea_estimators_are_not_below_their_bounds(tmp_path):
     assert len(t) == len(res.data.t) and np.all(v > 0)
     row = workbench.experiment("sea").run_metrics(res.summaries[3], res.config)["ekf"]
     assert row["position_bound"] > 0 and row["position_efficiency"] > 0.5
+
+
+def test_omni_bounds_on_the_paper_scenario(tmp_path):
+    """Omni: pose and map bounds from the odometry and bearing model at the truth; the GTSAM
+    estimators near them and none below (within three Monte Carlo standard errors); the
+    smoothing bound under the filtering one at every step; the curves in the recording."""
+    import workbench
+    from workbench.recording import readback
+
+    res = workbench.run("omni", runs=6, duration=300.0, estimators="+fixed-lag", out=tmp_path / "o.rrd")
+    stats = res.metrics["estimators"]
+    assert stats["ekf"]["bound_kind"] == "filtering" and stats["gtsam-batch"]["bound_kind"] == "smoothing"
+    assert stats["fixed-lag"]["bound_kind"].startswith("smoothing (a lower bound for a 5 s lag")
+    for name in ("ekf", "isam2", "gtsam-batch", "fixed-lag", "odometry"):
+        e = stats[name]
+        for q in ("position", "heading"):
+            assert e["efficiency"][q] + 3 * e["efficiency_se"][q] >= 1.0, (name, q, e["efficiency"][q])
+    assert stats["odometry"]["efficiency"]["position"] > 5  # it ignores the bearings
+    z = res.summaries[0].bounds
+    # (the last step's two agree: GTSAM's marginals and the recursion to 1e-4)
+    assert np.all(z[float("inf")]["position"] <= z[0.0]["position"] * (1 + 1e-4))
+    assert np.isfinite(z["map"]).sum() >= len(z["map"]) // 2 and stats["gtsam-batch"]["bound"]["map"] > 0
+    _, v = readback.series(tmp_path / "o.rrd", "/monte_carlo/position/bound_filtering")
+    assert len(v) == len(res.summaries[0].t) and np.all(v > 0)
+    assert "Cramér-Rao bounds" in res.table

@@ -90,3 +90,43 @@ def efficiency(rmse: float, bound_variance: float) -> float:
     if not (np.isfinite(rmse) and np.isfinite(bound_variance)) or bound_variance <= 0:
         return float("nan")
     return float(rmse / np.sqrt(bound_variance))
+
+
+def table(stats: dict, quantities: tuple[tuple[str, str], ...]) -> list[str]:
+    """Markdown lines: each estimator's bound kind, its bounds and efficiencies (+- their Monte
+    Carlo standard errors) for ``quantities`` ((metric, unit), ...) from the metrics'
+    ``estimators.<name>.{bound, efficiency, efficiency_se, bound_kind}``; a note naming any
+    estimator below its bound by more than three standard errors (it cannot be, on these data)."""
+    rows = [(n, e) for n, e in stats["estimators"].items() if "bound" in e]
+    if not rows:
+        return []
+    head = " | ".join(f"{q} bound {u} | efficiency" for q, u in quantities)
+    out = ["**Cramér-Rao bounds**: efficiency = RMSE / bound (1: as good as any estimator can be on these data; "
+           "+- its Monte Carlo standard error); a causal estimator is held to the filtering bound, a smoother to "
+           "the smoothing bound", "", f"| estimator | held to | {head} |", "|---|---|" + "---|---|" * len(quantities)]
+    below = []
+    for name, e in rows:
+        cells = []
+        for q, _ in quantities:
+            b = e["bound"].get(q)
+            cells += [f"{b:.3g}" if b is not None else "", _efficiency(e, q)]
+        out.append(f"| {name} | {e['bound_kind']} | " + " | ".join(cells) + " |")
+        below += [f"{name} ({q})" for q in e["efficiency"] if _below(e, q)]
+    if below:
+        out += ["", "**Below the bound**, beyond the Monte Carlo error: " + ", ".join(below)
+                + ". No estimator can be on these data: it knows more than them (the truth?) or the bound's "
+                  "model is not the data's; check it."]
+    return out + [""]
+
+
+def _below(e: dict, q: str) -> bool:
+    """An efficiency under 1 by more than three of its standard errors."""
+    eff = e["efficiency"].get(q)
+    return eff is not None and np.isfinite(eff) and eff + 3 * e.get("efficiency_se", {}).get(q, 0.0) < 1.0
+
+
+def _efficiency(e: dict, q: str) -> str:
+    eff, se = e["efficiency"], e.get("efficiency_se", {})
+    if q not in eff or not np.isfinite(eff[q]):
+        return ""
+    return f"{eff[q]:.2f}" + (f" +- {se[q]:.2f}" if q in se else "") + (" (below!)" if _below(e, q) else "")

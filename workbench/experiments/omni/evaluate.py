@@ -8,14 +8,17 @@ Errors are ``truth - estimate`` with the heading wrapped; "after settling" means
 
 from __future__ import annotations
 
+import math
 import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from workbench.errors import require
-from workbench.estimation import metrics
+from workbench.estimation import bounds, metrics
 from workbench.estimation.angles import wrap
+from workbench.experiments.omni import bounds as omni_bounds
+from workbench.experiments.omni import graph
 from workbench.experiments.omni.config import OmniConfig
 from workbench.experiments.omni.estimate import SlamEstimate
 from workbench.experiments.omni.run import RunResult
@@ -66,6 +69,8 @@ class RunSummary:
     failures: dict[str, int]
     images: dict | None = None
     failed: dict[str, str] = field(default_factory=dict)  # estimators that failed: one line each
+    delays: dict[str, float] = field(default_factory=dict)  # each estimator's delay (its bound)
+    bounds: dict = field(default_factory=dict)  # delay -> {position, heading} (G,) variances; "map" (N,)
 
 
 def summarise(result: RunResult, cfg: OmniConfig, run: int) -> RunSummary:
@@ -84,10 +89,54 @@ def summarise(result: RunResult, cfg: OmniConfig, run: int) -> RunSummary:
         ok = est.init_step >= 0
         d[ok] = data.t[est.init_step[ok]] - data.t[est.first_seen[ok]]
         delay[name] = d
+    delays = {n: result.estimators[n].delay for n in result.estimates if n in result.estimators}
+    crb = {}
+    if result.images is None:  # bearings from images have the image stage's noise, not the model's: no bound
+        kf = result.keyframes if result.keyframes is not None else graph.keyframes(data, cfg)
+        crb = omni_bounds.variances(data, kf, {0.0, float("inf")} | {0.0 if d == 0 else float("inf")
+                                                                    for d in delays.values()})
     return RunSummary(run, data.t[grid], errs, sig, nees, maps, delay,
                       {n: e.seconds for n, e in result.estimates.items()},
                       {n: e.failures for n, e in result.estimates.items()},
-                      result.images.stats if result.images is not None else None, dict(result.failed))
+                      result.images.stats if result.images is not None else None, dict(result.failed),
+                      delays, crb)
+
+
+def bound_kind(delay: float) -> str:
+    """The bound an estimator using ``delay`` s of data after each step is held to."""
+    if delay == 0:
+        return "filtering"
+    return "smoothing" if np.isinf(delay) else f"smoothing (a lower bound for a {delay:g} s lag)"
+
+
+def _bound_summary(runs: list[RunSummary], name: str, E: np.ndarray, M: np.ndarray, settled: np.ndarray
+                   ) -> tuple[dict, dict, dict, str] | None:
+    """An estimator's bounds (the root of the variance bound averaged over the runs and the settled
+    steps it estimates; the map's over the landmarks it has), efficiencies (its RMSE over the same
+    over that) and their Monte Carlo standard errors."""
+    if not runs[0].bounds:
+        return None
+    delay = runs[0].delays.get(name, 0.0)
+    key = 0.0 if delay == 0 else float("inf")
+    V = {q: np.stack([r.bounds[key][q] for r in runs]) for q in ("position", "heading")}
+    sq = {"position": E[..., 0] ** 2 + E[..., 1] ** 2, "heading": E[..., 2] ** 2}
+    bound, eff, se = {}, {}, {}
+    for q, scale in (("position", 1.0), ("heading", math.degrees(1.0))):
+        ok = np.isfinite(sq[q]) & settled[None, :]
+        if not ok.any():
+            continue
+        b = float(np.sqrt(np.mean(V[q][ok]))) * scale
+        per_run = np.array([sq[q][i][ok[i]].mean() for i in range(len(runs)) if ok[i].any()])
+        bound[q] = b
+        eff[q] = bounds.efficiency(float(np.sqrt(sq[q][ok].mean())) * scale, b**2)
+        if len(per_run) > 1:
+            se[q] = float(eff[q] * 0.5 * per_run.std(ddof=1) / (np.sqrt(len(per_run)) * per_run.mean()))
+    maps = np.concatenate([r.bounds["map"] for r in runs])
+    ok = np.isfinite(M).all(axis=1) & np.isfinite(maps)
+    if ok.any():
+        bound["map"] = float(np.sqrt(np.mean(maps[ok])))
+        eff["map"] = bounds.efficiency(float(np.sqrt(np.mean(np.sum(M[ok] ** 2, axis=1)))), bound["map"] ** 2)
+    return bound, eff, se, bound_kind(delay)
 
 
 def statistics(cfg: OmniConfig, runs: list[RunSummary], label: str = "") -> dict:
@@ -135,6 +184,9 @@ def statistics(cfg: OmniConfig, runs: list[RunSummary], label: str = "") -> dict
             "failures": int(sum(r.failures[name] for r in runs)),
             "seconds": float(np.mean([r.seconds[name] for r in runs])),
         }
+        crb = _bound_summary(runs, name, E, M, settled)
+        if crb is not None:
+            entry["bound"], entry["efficiency"], entry["efficiency_se"], entry["bound_kind"] = crb
         out["estimators"][name] = entry
     if runs[0].images is not None:
         keys = runs[0].images

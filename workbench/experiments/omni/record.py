@@ -25,6 +25,8 @@ from workbench.recording import draw
 from workbench.recording import layout as views
 
 TL = "time"
+BOUNDS = {"bound_filtering": ((110, 110, 110), 2.0), "bound_smoothing": ((40, 40, 40), 2.0)}
+"""The Cramér-Rao bounds' curves: a filter's light grey, a smoother's dark."""
 
 
 def plots(first: RunResult, runs: list[RunSummary]) -> dict[str, views.Curves]:
@@ -46,14 +48,24 @@ def plots(first: RunResult, runs: list[RunSummary]) -> dict[str, views.Curves]:
 
     e, s = zero.errors, zero.sigmas
     mc = mc_curves(runs)
+    position = curves({n: c["position"] for n, c in mc.items()}, "m")
+    heading = curves({n: c["heading"] for n, c in mc.items()}, "deg")
+    if runs[0].bounds:  # the Cramér-Rao bounds beside the RMS errors over runs
+        for key, delay in (("bound_filtering", 0.0), ("bound_smoothing", float("inf"))):
+            if delay in runs[0].bounds:
+                V = {q: np.stack([r.bounds[delay][q] for r in runs]).mean(axis=0) for q in ("position", "heading")}
+                for c, values in ((position, np.sqrt(V["position"])), (heading, np.degrees(np.sqrt(V["heading"])))):
+                    c.series[key] = values
+                    c.fixed += (key,)
+                    c.labels[key] = f"Cramér-Rao, {key[6:]}"
     return {
         "/errors/position": curves({n: np.hypot(v[:, 0], v[:, 1]) for n, v in e.items()}, "m"),
         "/errors/heading": curves({n: np.degrees(v[:, 2]) for n, v in e.items()}, "deg"),
         "/nees": curves(dict(zero.nees), "", one),
         "/sigma/position": curves({n: np.hypot(v[:, 0], v[:, 1]) for n, v in s.items()}, "m"),
         "/sigma/heading": curves({n: np.degrees(v[:, 2]) for n, v in s.items()}, "deg"),
-        "/monte_carlo/position": curves({n: c["position"] for n, c in mc.items()}, "m"),
-        "/monte_carlo/heading": curves({n: c["heading"] for n, c in mc.items()}, "deg"),
+        "/monte_carlo/position": position,
+        "/monte_carlo/heading": heading,
         "/monte_carlo/nees": curves({n: c["nees"] for n, c in mc.items()}, "", many),
     }
 
@@ -86,7 +98,7 @@ def blueprint(names: list[str], scene: np.ndarray, curves: dict[str, views.Curve
         name="own sigmas (run 0)",
     )
     mc = rrb.Vertical(
-        plot("/monte_carlo/position", "RMS position error over runs (m)"),
+        plot("/monte_carlo/position", "RMS position error over runs (m), grey: Cramér-Rao bounds"),
         plot("/monte_carlo/heading", "RMS heading error over runs (deg)", legend=False),
         plot("/monte_carlo/nees", "ANEES over runs, grey: 95 % band", legend=False),
         name="over runs",
@@ -190,7 +202,7 @@ def record_run(rec: rr.RecordingStream, first: RunResult, zero: RunSummary) -> N
 
 def record_runs(rec: rr.RecordingStream, first: RunResult, runs: list[RunSummary], table_md: str) -> None:
     """Log the curves over all runs and the results table with how to read the recording."""
-    draw.plot_series(rec, TL, plots(first, runs), first.estimators, lambda o: o.startswith("/monte_carlo"))
+    draw.plot_series(rec, TL, plots(first, runs), first.estimators, lambda o: o.startswith("/monte_carlo"), BOUNDS)
     text = table_md + "\n\n" + how_to_read(first, len(runs))
     rec.log("/summary", rr.TextDocument(text, media_type=rr.MediaType.MARKDOWN), static=True)
 
@@ -211,7 +223,9 @@ def how_to_read(first: RunResult, runs: int) -> str:
         f"({one[0]:.2f}-{one[1]:.2f}); own sigmas: the standard deviations each estimator claims.",
         f"- over runs ({runs} runs): RMS position and heading error at each step, and the ANEES with its 95 % band "
         f"({many[0]:.2f}-{many[1]:.2f}): inside it the covariance is consistent with the errors, above it the "
-        "estimator is overconfident.",
+        "estimator is overconfident; beside the RMS errors the Cramér-Rao bounds of a filter (light grey) and a "
+        "smoother (dark grey): no estimator can be below the one it is held to for long (the results' efficiency "
+        "is RMSE / bound).",
         "- a plot's title names an estimator that is off its scale (its own values would flatten the others); "
         "the legend is in the first plot of each tab, the colours are the same below it.",
     ]

@@ -3,6 +3,8 @@ filter's own sigmas and its consistency, beside the paper's claims."""
 
 from __future__ import annotations
 
+from workbench.estimation import bounds
+
 PAPER_CLAIMS = ("paper's claims (simulation): position error < 0.5 m, heading error < 1 deg; "
                 "own standard deviations < 1 m and < 1 deg after settling; odometry drifts without bound")
 
@@ -37,6 +39,7 @@ def table(stats: dict) -> str:
         if e["failures"]:
             bits.append(f"{e['failures']} rejected update(s)")
         lines.append(f"- {name}: " + "; ".join(bits))
+    lines += [""] + bounds.table(stats, (("position", "m"), ("heading", "deg"), ("map", "m")))
     im = stats.get("images")
     if im:
         lines += ["", f"Image stage ({im['image_size']:.0f} px round images, {im['frames']:.0f} frames a run): "

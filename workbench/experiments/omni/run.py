@@ -27,6 +27,7 @@ class RunResult:
     estimators: dict[str, Estimator] = field(default_factory=dict)
     failed: dict[str, str] = field(default_factory=dict)  # estimators that failed: one line each
     images: object | None = None  # the image stage (``from_images``): images.ImageStage
+    keyframes: object | None = None  # the GTSAM estimators' graph skeleton, if one made it (graph.Keyframes)
 
     @property
     def grid(self) -> np.ndarray:
@@ -63,5 +64,6 @@ def run_once(cfg: OmniConfig, run: int, estimators: list[Estimator], record: boo
     """One run; ``record`` keeps what the recording draws (initialisation attempts, the
     graph's map through time)."""
     data, stage = with_stage(cfg, run, record)
-    est, failed = estimate_all(estimators, data, cfg, RunContext(run, record), check)
-    return RunResult(data, est, {e.name: e for e in estimators}, failed, stage)
+    ctx = RunContext(run, record)
+    est, failed = estimate_all(estimators, data, cfg, ctx, check)
+    return RunResult(data, est, {e.name: e for e in estimators}, failed, stage, ctx.get("keyframes"))

@@ -33,6 +33,7 @@ from workbench.recording import layout as views
 TL = "time"
 SERIES = {"truth": (draw.color("truth on white"), 1.5), "measured": (draw.color("measured"), 1.0),
           "bound_filtering": ((110, 110, 110), 2.0), "bound_smoothing": ((40, 40, 40), 2.0)}
+"""(the Cramér-Rao bounds' curves: a filter's light grey, a smoother's dark)"""
 """What is not an estimator in the plots (colour, width); the bands are grey."""
 
 

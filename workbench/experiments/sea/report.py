@@ -3,6 +3,7 @@ paper's rows beside ours, and the scenario's extra figures."""
 
 from __future__ import annotations
 
+from workbench.estimation import bounds
 from workbench.experiments.sea.paper import TABLE2
 
 COLS = ("x", "y", "alpha", "beta")
@@ -67,41 +68,8 @@ def table(stats: dict) -> str:
             f"v {im['rmse_px']['v']:.3f} px (bias {im['bias_px']['u']:.3f}, {im['bias_px']['v']:.3f}); "
             f"horizon rmse {_num(im['horizon']['rmse_px'])} px; detection {fps['detect']:.0f} frames/s "
             f"({fps['render_and_detect']:.0f} with rendering); no detection: {reasons}")
-    return "\n".join(lines + [""] + bounds_table(stats) + extra)
-
-
-def bounds_table(stats: dict) -> list[str]:
-    """Each estimator's Cramér-Rao bound and its efficiency (RMSE / bound) per quantity."""
-    rows = [(n, e) for n, e in stats["estimators"].items() if "bound" in e]
-    if not rows:
-        return []
-    out = ["**Cramér-Rao bounds**: efficiency = RMSE / bound (1: as good as any estimator can be on these data; "
-           "+- its Monte Carlo standard error); a causal estimator is held to the filtering bound, a smoother to "
-           "the smoothing bound", "",
-           "| estimator | bound | position m | efficiency | range | alpha | beta |", "|---|---|---|---|---|---|---|"]
-    below = []
-    for name, e in rows:
-        cells = [_efficiency(e, q) for q in ("position", "range", "alpha", "beta")]
-        out.append(f"| {name} | {e['bound_kind']} | {e['bound'].get('position', float('nan')):.2f} | "
-                   + " | ".join(cells) + " |")
-        below += [f"{name} ({q})" for q in e["efficiency"] if _below(e, q)]
-    if below:
-        out += ["", "**Below the bound**, beyond the Monte Carlo error: " + ", ".join(below)
-                + ". No estimator can be on these data: it knows more than them (the truth?) or the bound's "
-                  "model is not the data's; check it."]
-    return out + [""]
-
-
-def _below(e: dict, q: str) -> bool:
-    """An efficiency under 1 by more than three of its standard errors."""
-    return e["efficiency"][q] + 3 * e.get("efficiency_se", {}).get(q, 0.0) < 1.0
-
-
-def _efficiency(e: dict, q: str) -> str:
-    eff, se = e["efficiency"], e.get("efficiency_se", {})
-    if q not in eff:
-        return ""
-    return f"{eff[q]:.2f}" + (f" +- {se[q]:.2f}" if q in se else "") + (" (below!)" if _below(e, q) else "")
+    return "\n".join(lines + [""] + bounds.table(stats, (("position", "m"), ("range", "m"), ("alpha", "'"),
+                                                          ("beta", "'"))) + extra)
 
 
 def _num(x: float | None) -> str:
