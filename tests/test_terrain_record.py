@@ -225,7 +225,8 @@ def test_winner_and_functional(recorded):
     assert list(labels) == ["truth", *[n for n in first.estimates if n != "recurrent-search"]]
     markers = r.values("/world/search/markers", "Points3D:positions", 3)
     assert np.allclose(markers[1], first.measured.position[1])         # zero error: the measured position
-    summary = EXPERIMENT.evaluate(first, None, 0)
+    cfg = TerrainConfig(size="100x100", levels_linear=LEVELS[0], levels_angular=LEVELS[1], seed=4).validate()
+    summary = EXPERIMENT.evaluate(first, cfg, 0)
     if summary.winner_in_true_position_cell:
         assert np.all(np.abs(markers[0] - centres[-1][0]) <= half + 1e-6)
     f = np.asarray(s.functional)

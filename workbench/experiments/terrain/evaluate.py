@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from workbench.errors import require
+from workbench.estimation import bounds as estimation_bounds
 from workbench.estimation import metrics
 from workbench.estimation.angles import wrap
 from workbench.experiments.terrain import halftone, navigation
@@ -46,6 +47,7 @@ class RunSummary:
     nodes: int
     failed: dict[str, str] = field(default_factory=dict)  # estimators that failed: one line each
     ground_maps: dict[str, np.ndarray] = field(default_factory=dict)  # the recorded run's error maps
+    bound: dict[str, float] = field(default_factory=dict)  # image II's Cramér-Rao variances (.bounds)
 
 
 def summarise(res: RunResult, cfg: TerrainConfig, run: int) -> RunSummary:
@@ -74,7 +76,35 @@ def summarise(res: RunResult, cfg: TerrainConfig, run: int) -> RunSummary:
     return RunSummary(run, pos, att, rm, sec, nees, hit, hit_linear,
                       0 if res.search is None else len(res.search.centres),
                       0 if res.search is None else res.search.nodes, dict(res.failed),
-                      maps if res.record else {})
+                      maps if res.record else {}, cramer_rao(res, cfg))
+
+
+def cramer_rao(res: RunResult, cfg: TerrainConfig) -> dict[str, float]:
+    """Image II's Cramér-Rao variances for this run (:mod:`.bounds`), from the search's problem
+    (made here if no search estimator ran)."""
+    from workbench.experiments.terrain import bounds
+    from workbench.experiments.terrain import search as rs
+
+    problem = res.problem
+    if problem is None:
+        sc, meas = res.scene, res.measured
+        problem = rs.make_problem(cfg, sc.k, sc.dem, meas.position, meas.angles, sc.images, sc.interval)
+    P, r = bounds.state_bound(problem, res.state, cfg)
+    return {**bounds.variances(P, cfg, res.scene.interval), "residual_variance": r}
+
+
+def _bounds(runs: list[RunSummary], pos: np.ndarray, att: np.ndarray) -> dict:
+    """Image II's bound (the root of the runs' mean variance bound), the efficiency (the RMS
+    error over that) and its Monte Carlo standard error, for position (m) and attitude (mrad)."""
+    bound, eff, se = {}, {}, {}
+    for q, err, scale in (("position", pos, 1.0), ("attitude", att, 1000.0)):
+        sq = np.sum(err**2, axis=1)
+        v = np.array([r.bound[q] for r in runs])
+        bound[q] = float(np.sqrt(v.mean())) * scale
+        eff[q] = estimation_bounds.efficiency(float(np.sqrt(sq.mean())) * scale, bound[q] ** 2)
+        if len(runs) > 1 and sq.mean() > 0:
+            se[q] = float(eff[q] * 0.5 * sq.std(ddof=1) / (np.sqrt(len(runs)) * sq.mean()))
+    return {"bound": bound, "efficiency": eff, "efficiency_se": se, "bound_kind": "images and navigation prior"}
 
 
 def _paper_fractions(pos: np.ndarray, max_linear: float) -> dict[str, float]:
@@ -123,6 +153,8 @@ def statistics(cfg: TerrainConfig, runs: list[RunSummary], label: str = "") -> d
                      "h": float(np.sqrt(np.mean(pos[:, 2] ** 2)))},
             "paper": _paper_fractions(pos, cfg.max_linear),
         }
+        if runs[0].bound:
+            out["estimators"][name].update(_bounds(runs, pos, att))
         nees = [r.nees[name] for r in runs if name in r.nees]
         if nees:
             lo, hi = metrics.chi2_band(3, len(nees))

@@ -3,6 +3,8 @@ the navigation system, the halftone model's ground error, the paper's normalised
 
 from __future__ import annotations
 
+from workbench.estimation import bounds
+
 PAPER_CLAIMS = ("paper's claims (Fig. 3 and text): after processing, mean linear errors at most 40-60 % of the "
                 "maximum error (at least a 2x reduction); their spread 6-16 % (100x100) and 4-13 % (200x200) of it, "
                 "radial 3-10 % and 2-8 %")
@@ -34,7 +36,8 @@ def table(stats: dict) -> str:
         if e.get("anees") is not None:
             lo, hi = e["nees_band"]
             lines.append(f"- {name}: image II's position ANEES {e['anees']:.2f} (3 dof; 95 % band {lo:.2f}-{hi:.2f})")
-    lines += ["", "Errors are image II's (truth - estimate): position as a 3D norm, attitude as the norm of the "
+    lines += [""] + bounds.table(stats, (("position", "m"), ("attitude", "mrad")))
+    lines += ["Errors are image II's (truth - estimate): position as a 3D norm, attitude as the norm of the "
               "three angles, means over runs; ground rmse is the halftone model's horizontal error over every pixel "
               "of image II (RMS over runs); dR = sqrt(dX^2 + dY^2).", "", PAPER_CLAIMS]
     return "\n".join(lines)

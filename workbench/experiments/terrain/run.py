@@ -28,6 +28,7 @@ class RunResult:
     failed: dict[str, str] = field(default_factory=dict)  # estimators that failed: one line each
     search: object | None = None  # search.SearchResult
     record: bool = False          # the recorded run (full-resolution error maps)
+    problem: object | None = None  # the search's search.Problem (the bound reads its model)
 
     @property
     def scene(self) -> Scene:
@@ -68,4 +69,5 @@ def run_once(cfg: TerrainConfig, run: int, estimators: list[Estimator], record: 
     ctx = RunContext(run, record, threads)
     est, failed = estimate_all(estimators, data, cfg, ctx, check)
     found = ctx.get("search")
-    return RunResult(data, est, {e.name: e for e in estimators}, failed, found[2] if found else None, record)
+    return RunResult(data, est, {e.name: e for e in estimators}, failed, found[2] if found else None, record,
+                     found[0] if found else None)
