@@ -231,14 +231,16 @@ def mc_curves(runs: list[RunSummary]) -> dict[str, dict[str, np.ndarray]]:
 
 
 RUN_METRICS = {"position_rmse": "m", "heading_rmse": "deg", "map_rmse": "m", "final_position": "m",
-               "anees": "3 dof", "landmarks": "count", "seconds": "s"}
+               "anees": "3 dof", "landmarks": "count", "seconds": "s", "position_bound": "m",
+               "position_efficiency": "RMSE / bound"}
 """The per-run figures of a sweep's tidy table, and their units."""
 
 
 def run_metrics(summary: RunSummary, cfg: OmniConfig) -> dict[str, dict[str, float]]:
     """One run's figures per estimator (a sweep's rows): position and heading RMSE after
     settling, the final map's RMSE, the last pose's error, the mean NEES after settling, the
-    landmarks initialised, the seconds. NaN where an estimator has none (odometry's map)."""
+    landmarks initialised, the seconds; the position's Cramér-Rao bound from this run and the
+    efficiency against it. NaN where an estimator has none (odometry's map)."""
     settled = summary.t >= cfg.settle
     if not settled.any():
         settled = np.ones_like(settled)
@@ -250,5 +252,10 @@ def run_metrics(summary: RunSummary, cfg: OmniConfig) -> dict[str, dict[str, flo
                  "map_rmse": _rms(np.hypot(m[:, 0], m[:, 1])), "final_position": _rms(pos[-1:]),
                  "anees": _mean(summary.nees[name][settled]), "landmarks": float(np.isfinite(m[:, 0]).sum()),
                  "seconds": float(summary.seconds[name])}
+        if summary.bounds:
+            key = 0.0 if summary.delays.get(name, 0.0) == 0 else float("inf")
+            bound = float(np.sqrt(np.mean(summary.bounds[key]["position"][settled])))
+            entry["position_bound"] = bound
+            entry["position_efficiency"] = bounds.efficiency(entry["position_rmse"] or np.nan, bound**2)
         out[name] = {k: (np.nan if v is None else float(v)) for k, v in entry.items()}
     return out

@@ -164,7 +164,8 @@ def statistics(cfg: TerrainConfig, runs: list[RunSummary], label: str = "") -> d
 
 
 RUN_METRICS = {"position_error": "m", "attitude_error": "rad", "ground_rmse": "m", "dx": "m", "dy": "m",
-               "dh": "m", "dx_fraction": "of max", "dr_fraction": "of max", "nees": "3 dof", "seconds": "s"}
+               "dh": "m", "dx_fraction": "of max", "dr_fraction": "of max", "nees": "3 dof", "seconds": "s",
+               "position_bound": "m", "position_efficiency": "error / bound"}
 """The per-run figures of a sweep's tidy table, and their units."""
 
 
@@ -173,7 +174,7 @@ def run_metrics(summary: RunSummary, cfg: TerrainConfig) -> dict[str, dict[str, 
     and its components (truth - estimate), the attitude error (norm), the halftone model's
     ground RMSE, the paper's Fig. 3 quantities ``|dX| / max`` and ``sqrt(dX^2 + dY^2) / max`` (their
     means and spreads over runs are the paper's), the position NEES where there is a covariance,
-    the seconds."""
+    the seconds; the position's Cramér-Rao bound and the error over it."""
     out = {}
     for name, p in summary.position.items():
         entry = {"position_error": float(np.linalg.norm(p)), "attitude_error": float(np.linalg.norm(
@@ -182,5 +183,9 @@ def run_metrics(summary: RunSummary, cfg: TerrainConfig) -> dict[str, dict[str, 
                  "dr_fraction": float(np.hypot(p[0], p[1]) / cfg.max_linear), "seconds": float(summary.seconds[name])}
         if name in summary.nees:
             entry["nees"] = float(summary.nees[name])
+        if summary.bound:
+            entry["position_bound"] = float(np.sqrt(summary.bound["position"]))
+            entry["position_efficiency"] = estimation_bounds.efficiency(entry["position_error"],
+                                                                        summary.bound["position"])
         out[name] = entry
     return out
