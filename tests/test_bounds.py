@@ -137,6 +137,7 @@ def test_sea_estimators_are_not_below_their_bounds(tmp_path):
     from workbench.recording import readback
 
     res = workbench.run("sea", runs=24, estimators=["+fixed-lag", oracle], out=tmp_path / "s.rrd")
+    assert "oracle (position)" in res.table.split("**Below the bound**")[1]
     stats = res.metrics["estimators"]
     kinds = {n: e["bound_kind"] for n, e in stats.items()}
     assert kinds["ekf"] == "filtering" and kinds["gtsam"] == "smoothing" and kinds["fixed-lag"] == "fixed-lag 5 s"
@@ -182,8 +183,9 @@ def test_omni_bounds_on_the_paper_scenario(tmp_path):
 
 def test_terrain_bound_and_its_fisher_information():
     """Terrain: the images' information at the true errors (the compiled kernel's sums) equals the
-    one summed node by node from the NumPy reference model; no estimator below the bound (within
-    three Monte Carlo standard errors) in either error mode. (Central differences of the residual
+    one summed node by node from the NumPy reference model; no estimator below its bound (within
+    three Monte Carlo standard errors) in either error mode, the bundle adjustment held to its own
+    graph's (its tie points and the DEM at the truth). (Central differences of the residual
     give 1.9-3 times this information: they see the bilinear image's own slopes, where the model
     and its filters use image II's central-difference gradient, interpolated: a reading the bound
     module states.)"""
@@ -198,6 +200,8 @@ def test_terrain_bound_and_its_fisher_information():
             for q in ("position", "attitude"):
                 assert e["efficiency"][q] + 3 * e["efficiency_se"][q] >= 1.0, (mode, name, q)
         assert "Cramér-Rao bounds" in res.table
+        assert res.metrics["estimators"]["gtsam-ba"]["bound_kind"] == "its tie points and DEM"
+        assert res.metrics["estimators"]["recurrent-search-iterated"]["bound_kind"] == "images and navigation prior"
     cfg = workbench.configure("terrain", size="100x100")
     data = get("terrain").dataset(cfg, 1)
     sc, meas = data.scene, data.measured

@@ -120,9 +120,10 @@ def table(stats: dict, quantities: tuple[tuple[str, str], ...]) -> list[str]:
 
 
 def _below(e: dict, q: str) -> bool:
-    """An efficiency under 1 by more than three of its standard errors."""
-    eff = e["efficiency"].get(q)
-    return eff is not None and np.isfinite(eff) and eff + 3 * e.get("efficiency_se", {}).get(q, 0.0) < 1.0
+    """An efficiency under 1 by more than three of its standard errors (none without them: one
+    run's error is one draw, as likely small as large)."""
+    eff, se = e["efficiency"].get(q), e.get("efficiency_se", {}).get(q)
+    return eff is not None and se is not None and np.isfinite(eff) and eff + 3 * se < 1.0
 
 
 def _efficiency(e: dict, q: str) -> str:

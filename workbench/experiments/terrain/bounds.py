@@ -11,6 +11,10 @@ spread (``sigma_fraction`` of each maximum), as a Gaussian. The state is the err
 (``common``: both exposures' errors; ``ii-only``: image II's six). The bound is one run's; the
 variances are averaged over the runs like the squared errors.
 
+The bundle adjustment reads other data from the same images (SIFT tie points) and is held to
+its own graph's bound (:func:`bundle_adjustment`): the tie points' projections and DEM heights
+with the sigmas it estimated, the navigation factors of the mode, at the true orientation.
+
 Readings taken: ``H`` is the model's, the one the filters use: image II's gradient by central
 differences, interpolated; central differences of the residual itself (the bilinear image's own
 slopes) give 1.9-3 times the information on a synthetic 100 x 100 pair. The nodes' residuals are
@@ -46,3 +50,54 @@ def variances(P: np.ndarray, cfg: TerrainConfig, interval: float) -> dict[str, f
     C = m @ P @ m.T                                     # (6, 6): dX, dY, dH, dpsi, dtheta, dgamma
     return {"position": float(np.trace(C[:3, :3])), "x": float(C[0, 0]), "y": float(C[1, 1]),
             "h": float(C[2, 2]), "attitude": float(np.trace(C[3:, 3:]))}
+
+
+def bundle_adjustment(cfg: TerrainConfig, scene, extras: dict) -> dict[str, float] | None:
+    """The bound of the bundle adjustment's own data: its graph (:func:`ba._graph`: the pose
+    factors, each kept tie point's two projections with the pixel sigma and its DEM height
+    factor with the height sigma the adjustment estimated) built at the true orientation, the
+    tie points' ground points where image I's true rays meet the DEM; GTSAM's marginals there.
+    Image II's variances as :func:`variances` gives them, or None without tie points."""
+    import gtsam
+    from gtsam.symbol_shorthand import L, X
+
+    from workbench.experiments.terrain import ba, camera
+    from workbench.experiments.terrain.dem import Dem
+
+    if not extras or "tie_points" not in extras or extras.get("sigmas") is None:
+        return None
+    uv1, uv2 = extras["tie_points"]
+    origin = np.array([np.round(scene.position[0, 0]), np.round(scene.position[0, 1]), 0.0])
+    dem = Dem(scene.dem.heights, scene.dem.x0 - origin[0], scene.dem.y0 - origin[1], scene.dem.dx, scene.dem.dy)
+    pos = scene.position - origin
+    rot = camera.rotation(scene.angles)
+    pair = ba._Pair(dem, scene.k, pos, rot, np.asarray(scene.angles, float), scene.interval)
+    graph = ba._graph(cfg, pair, uv1, uv2, np.ones(len(uv1), bool), *extras["sigmas"])
+    values = gtsam.Values()
+    for i in range(2):
+        values.insert(X(i), gtsam.Pose3(gtsam.Rot3(rot[i]), gtsam.Point3(*pos[i])))
+    points = camera.ground_points(dem, scene.k, pos[0], rot[0], uv1[:, 0], uv1[:, 1], what="the tie points")
+    for j, p in enumerate(points):
+        values.insert(L(j), gtsam.Point3(*p))
+    try:
+        C = gtsam.Marginals(graph, values).marginalCovariance(X(1))   # Pose3 tangent: rotation, translation
+    except RuntimeError:
+        return None
+    r2 = rot[1]
+    position = r2 @ C[3:, 3:] @ r2.T
+    # the attitude's Euler angles against the body-frame rotation vector, by central differences
+    eps = 1e-6
+    J = np.stack([(camera.angles_from_rotation(r2 @ _exp(eps * e)) - camera.angles_from_rotation(r2 @ _exp(-eps * e)))
+                  / (2 * eps) for e in np.eye(3)], axis=1)
+    attitude = J @ C[:3, :3] @ J.T
+    return {"position": float(np.trace(position)), "x": float(position[0, 0]), "y": float(position[1, 1]),
+            "h": float(position[2, 2]), "attitude": float(np.trace(attitude))}
+
+
+def _exp(w: np.ndarray) -> np.ndarray:
+    """The rotation matrix of a small rotation vector (Rodrigues)."""
+    a = float(np.linalg.norm(w))
+    K = np.array([[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]])
+    if a < 1e-12:
+        return np.eye(3) + K
+    return np.eye(3) + np.sin(a) / a * K + (1 - np.cos(a)) / a**2 * K @ K

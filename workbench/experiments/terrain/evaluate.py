@@ -48,6 +48,7 @@ class RunSummary:
     failed: dict[str, str] = field(default_factory=dict)  # estimators that failed: one line each
     ground_maps: dict[str, np.ndarray] = field(default_factory=dict)  # the recorded run's error maps
     bound: dict[str, float] = field(default_factory=dict)  # image II's Cramér-Rao variances (.bounds)
+    bound_ba: dict[str, float] = field(default_factory=dict)  # the bundle adjustment's own graph's
 
 
 def summarise(res: RunResult, cfg: TerrainConfig, run: int) -> RunSummary:
@@ -76,7 +77,14 @@ def summarise(res: RunResult, cfg: TerrainConfig, run: int) -> RunSummary:
     return RunSummary(run, pos, att, rm, sec, nees, hit, hit_linear,
                       0 if res.search is None else len(res.search.centres),
                       0 if res.search is None else res.search.nodes, dict(res.failed),
-                      maps if res.record else {}, cramer_rao(res, cfg))
+                      maps if res.record else {}, cramer_rao(res, cfg), _ba_bound(res, cfg))
+
+
+def _ba_bound(res: RunResult, cfg: TerrainConfig) -> dict[str, float]:
+    from workbench.experiments.terrain import bounds
+
+    est = res.estimates.get("gtsam-ba")
+    return (bounds.bundle_adjustment(cfg, res.scene, est.extras) if est is not None else None) or {}
 
 
 def cramer_rao(res: RunResult, cfg: TerrainConfig) -> dict[str, float]:
@@ -93,18 +101,19 @@ def cramer_rao(res: RunResult, cfg: TerrainConfig) -> dict[str, float]:
     return {**bounds.variances(P, cfg, res.scene.interval), "residual_variance": r}
 
 
-def _bounds(runs: list[RunSummary], pos: np.ndarray, att: np.ndarray) -> dict:
+def _bounds(runs: list[RunSummary], pos: np.ndarray, att: np.ndarray, field: str = "bound",
+            kind: str = "images and navigation prior") -> dict:
     """Image II's bound (the root of the runs' mean variance bound), the efficiency (the RMS
     error over that) and its Monte Carlo standard error, for position (m) and attitude (mrad)."""
     bound, eff, se = {}, {}, {}
     for q, err, scale in (("position", pos, 1.0), ("attitude", att, 1000.0)):
         sq = np.sum(err**2, axis=1)
-        v = np.array([r.bound[q] for r in runs])
+        v = np.array([getattr(r, field)[q] for r in runs])
         bound[q] = float(np.sqrt(v.mean())) * scale
         eff[q] = estimation_bounds.efficiency(float(np.sqrt(sq.mean())) * scale, bound[q] ** 2)
         if len(runs) > 1 and sq.mean() > 0:
             se[q] = float(eff[q] * 0.5 * sq.std(ddof=1) / (np.sqrt(len(runs)) * sq.mean()))
-    return {"bound": bound, "efficiency": eff, "efficiency_se": se, "bound_kind": "images and navigation prior"}
+    return {"bound": bound, "efficiency": eff, "efficiency_se": se, "bound_kind": kind}
 
 
 def _paper_fractions(pos: np.ndarray, max_linear: float) -> dict[str, float]:
@@ -153,7 +162,9 @@ def statistics(cfg: TerrainConfig, runs: list[RunSummary], label: str = "") -> d
                      "h": float(np.sqrt(np.mean(pos[:, 2] ** 2)))},
             "paper": _paper_fractions(pos, cfg.max_linear),
         }
-        if runs[0].bound:
+        if name == "gtsam-ba" and all(r.bound_ba for r in runs):
+            out["estimators"][name].update(_bounds(runs, pos, att, "bound_ba", "its tie points and DEM"))
+        elif runs[0].bound:
             out["estimators"][name].update(_bounds(runs, pos, att))
         nees = [r.nees[name] for r in runs if name in r.nees]
         if nees:
