@@ -37,6 +37,7 @@ def _bounds(name: str, exp, cfg, result) -> float:
         from workbench.experiments.terrain import bounds as tb
 
         tb.state_bound(result.problem, result.state, cfg)
+        tb.bundle_adjustment(cfg, result.scene, result.estimates["gtsam-ba"].extras)
     return time.perf_counter() - t0
 
 
