@@ -16,6 +16,7 @@ import numpy as np
 
 from workbench.errors import require
 from workbench.estimation import bounds, metrics
+from workbench.estimation.alignment import umeyama
 from workbench.estimation.angles import wrap
 from workbench.experiments.omni import bounds as omni_bounds
 from workbench.experiments.omni import graph
@@ -70,6 +71,8 @@ class RunSummary:
     images: dict | None = None
     failed: dict[str, str] = field(default_factory=dict)  # estimators that failed: one line each
     delays: dict[str, float] = field(default_factory=dict)  # each estimator's delay (its bound)
+    aligned: dict[str, np.ndarray] = field(default_factory=dict)  # errors after the best rigid alignment
+    alignment: dict[str, tuple[float, float, float]] = field(default_factory=dict)  # its rotation, translation
     bounds: dict = field(default_factory=dict)  # delay -> {position, heading} (G,) variances; "map" (N,)
 
 
@@ -89,6 +92,12 @@ def summarise(result: RunResult, cfg: OmniConfig, run: int) -> RunSummary:
         ok = est.init_step >= 0
         d[ok] = data.t[est.init_step[ok]] - data.t[est.first_seen[ok]]
         delay[name] = d
+    aligned, alignment = {}, {}
+    for name, est in result.estimates.items():
+        pose, _ = on_grid(est, grid)
+        a = umeyama(pose[:, :2], truth[:, :2])
+        aligned[name] = pose_errors(truth, a.apply(pose))
+        alignment[name] = (a.rotation, float(a.translation[0]), float(a.translation[1]))
     delays = {n: result.estimators[n].delay for n in result.estimates if n in result.estimators}
     crb = {}
     if result.images is None:  # bearings from images have the image stage's noise, not the model's: no bound
@@ -99,7 +108,7 @@ def summarise(result: RunResult, cfg: OmniConfig, run: int) -> RunSummary:
                       {n: e.seconds for n, e in result.estimates.items()},
                       {n: e.failures for n, e in result.estimates.items()},
                       result.images.stats if result.images is not None else None, dict(result.failed),
-                      delays, crb)
+                      delays, aligned=aligned, alignment=alignment, bounds=crb)
 
 
 def bound_kind(delay: float) -> str:
@@ -184,6 +193,13 @@ def statistics(cfg: OmniConfig, runs: list[RunSummary], label: str = "") -> dict
             "failures": int(sum(r.failures[name] for r in runs)),
             "seconds": float(np.mean([r.seconds[name] for r in runs])),
         }
+        A = np.stack([r.aligned[name] for r in runs])
+        apos, ahead = np.hypot(A[..., 0], A[..., 1]), np.degrees(np.abs(A[..., 2]))
+        rot = np.array([r.alignment[name] for r in runs])
+        entry["rmse_aligned"] = {"position": _rms(apos[:, settled]), "heading": _rms(ahead[:, settled])}
+        entry["rmse_aligned_whole_run"] = {"position": _rms(apos), "heading": _rms(ahead)}
+        entry["alignment"] = {"rotation_deg": _rms(np.degrees(rot[:, 0])),
+                              "translation": _rms(np.hypot(rot[:, 1], rot[:, 2]))}
         crb = _bound_summary(runs, name, E, M, settled)
         if crb is not None:
             entry["bound"], entry["efficiency"], entry["efficiency_se"], entry["bound_kind"] = crb

@@ -34,6 +34,11 @@ def table(stats: dict) -> str:
         w, m = e["rmse_whole_run"], e["max_whole_run"]
         bits = [f"position rmse {_f(w['position'])} m, max {_f(m['position'])} m",
                 f"heading rmse {_f(w['heading'])} deg, max {_f(m['heading'])} deg"]
+        if e.get("rmse_aligned_whole_run"):
+            a, r = e["rmse_aligned_whole_run"], e["alignment"]
+            bits.append(f"after the best rigid alignment (evo -a) position rmse {_f(a['position'])} m, "
+                        f"heading rmse {_f(a['heading'])} deg (the alignment: {_f(r['rotation_deg'])} deg, "
+                        f"{_f(r['translation'])} m, rms over runs)")
         if e.get("nees_inside_band") is not None:
             bits.append(f"mean NEES inside the band at {100 * e['nees_inside_band']:.0f} % of steps")
         if e["failures"]:
