@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from workbench.errors import WorkbenchError
+from workbench.errors import DataWarning, WorkbenchError
 from workbench.estimation.angles import wrap
 from workbench.experiments.omni import mrclam
 from workbench.paths import data_root
@@ -209,14 +209,15 @@ BAD = [  # file, its rows, what the message must also say
     ("Robot1_Odometry.dat", [ODOM[0], (100.5, 1.0), *ODOM[3:]], ["line 6", "2 column(s)"]),
     ("Robot1_Odometry.dat", [ODOM[0], (100.5, "abc", 0.1), *ODOM[3:]], ["line 6", "'abc'"]),
     ("Robot1_Odometry.dat", [ODOM[0], (100.5, 1.0, "1,5"), *ODOM[3:]], ["line 6", "'1,5'"]),
-    ("Robot1_Odometry.dat", [*ODOM[:3], (100.3, 1.0, 0.0), *ODOM[3:]], ["line 8", "backwards", "line 7"]),
+    ("Robot1_Odometry.dat", [*ODOM[:3], (98.3, 1.0, 0.0), *ODOM[3:]], ["line 8", "backwards", "line 7",
+                                                                     "more than 1 s"]),
     ("Robot1_Odometry.dat", [ODOM[0], (100.5, "inf", 0.0), *ODOM[3:]], ["line 6", "non-finite"]),
-    ("Robot1_Measurement.dat", [*MEAS[:4], (100.6, 81, 2.0, 0.0), *MEAS[4:]], ["line 9", "backwards"]),
-    ("Robot1_Measurement.dat", [MEAS[0], (100.2, 63, 2.0)], ["line 6", "3 column(s)"]),
+    ("Robot1_Measurement.dat", [*MEAS[:4], (99.6, 81, 2.0, 0.0), *MEAS[4:]], ["line 9", "backwards"]),
+    ("Robot1_Measurement.dat", [MEAS[0], (100.2, 63, 2.0), MEAS[1]], ["line 6", "3 column(s)"]),
     ("Robot1_Measurement.dat", [MEAS[0], (100.2, 63.5, 2.0, 0.0)], ["line 6", "integer"]),
     ("Robot1_Measurement.dat", [MEAS[0], (100.2, 63, 2.0, "nan")], ["line 6", "non-finite"]),
     ("Robot1_Groundtruth.dat", [TRUTH[0], (100.5, 0.5, "nan", 3.1), *TRUTH[2:]], ["line 6", "non-finite"]),
-    ("Robot1_Groundtruth.dat", [TRUTH[1], TRUTH[0]], ["line 6", "backwards"]),
+    ("Robot1_Groundtruth.dat", [TRUTH[1], (98.0, 0.0, 0.0, 3.0)], ["line 6", "backwards"]),
     ("Robot1_Groundtruth.dat", [], ["no data"]),
     ("Landmark_Groundtruth.dat", [(6, 1.0)], ["line 5", "expected at least 3"]),
     ("Landmark_Groundtruth.dat", [*LANDMARKS, LANDMARKS[0]], ["line 7", "landmark subject 6 repeats"]),
@@ -232,6 +233,40 @@ def test_bad_file(folder, name, rows, says):
     message = raises(name, folder, 1)
     for text in says:
         assert text in message, message
+
+
+QUIRKS = {  # file, its rows, the repairs counted (beyond the fixture's own: two odometry gaps, one repeat)
+    "first odometry sample stamped after the second": (
+        "Robot1_Odometry.dat", [ODOM[1], ODOM[0], *ODOM[2:]], {"odometry_reordered": 2}),
+    "a truth row 0.5 s out of order": (
+        "Robot1_Groundtruth.dat", [TRUTH[1], TRUTH[0], *TRUTH[2:]], {"groundtruth_reordered": 2}),
+    "a measurement written late": (
+        "Robot1_Measurement.dat", [*MEAS[:4], (100.6, 81, 2.0, 0.0), *MEAS[4:]], {"measurement_reordered": 2}),
+    "the odometry's last line cut short": (
+        "Robot1_Odometry.dat", [*ODOM, (104.1, "1.")], {"cut_last_line": 1}),
+    "the truth's last line cut mid-number": (
+        "Robot1_Groundtruth.dat", [*TRUTH, (104.0, 4.0, "1.0e")], {"cut_last_line": 1}),
+}
+
+
+@pytest.mark.parametrize("quirk", list(QUIRKS))
+def test_quirks_are_repaired_counted_and_said(folder, quirk):
+    """What real files do that a loader must meet: repaired, counted, one warning line each;
+    the rows as if the file had been clean."""
+    clean = mrclam.load(folder, 1)
+    name, rows, counted = QUIRKS[quirk]
+    write(folder / name, rows)
+    with pytest.warns(DataWarning) as said:
+        log = mrclam.load(folder, 1)
+    assert all(name in str(w.message) and "\n" not in str(w.message) for w in said if name in str(w.message))
+    assert {k: log.repairs[k] for k in counted} == counted
+    assert log.repairs["odometry_gaps"] == clean.repairs["odometry_gaps"] == 2   # 0.8 s and 1.6 s
+    assert np.all(np.diff(log.odom_t) > 0) and np.all(np.diff(log.truth_t) > 0) and np.all(np.diff(log.meas_t) >= 0)
+    if "measurement" not in name:
+        np.testing.assert_array_equal(log.odom_t, clean.odom_t)
+        np.testing.assert_array_equal(log.truth_pose, clean.truth_pose)
+    else:
+        assert len(log.meas_t) == len(clean.meas_t) + 1
 
 
 def test_zero_byte_file(folder):
@@ -325,3 +360,34 @@ def test_real_odometry_yaw_rate_leads_truth(real):
     lag = lags[int(np.argmax(corr))] * dt
     assert 0.05 < lag < 0.3 and max(corr) > 0.7
 
+
+
+@needs_data
+def test_a_quirky_real_log_runs_with_its_repairs_said(tmp_path):
+    """Robot 1's real files with two quirks written in (its first odometry sample stamped after
+    the second, a last line cut short) run through the command line: one warning line per repair,
+    the counts in the metrics; time running back by a minute is one line and exit 2."""
+    import json
+    import shutil
+
+    from launcher import wb
+
+    d = tmp_path / "quirky"
+    d.mkdir()
+    for f in ("Barcodes.dat", "Landmark_Groundtruth.dat", "Robot1_Measurement.dat", "Robot1_Groundtruth.dat"):
+        shutil.copy(MRCLAM / f, d / f)
+    lines = (MRCLAM / "Robot1_Odometry.dat").read_text().splitlines(keepends=True)
+    head, rows = lines[:4], lines[4:]
+    (d / "Robot1_Odometry.dat").write_text("".join(head + [rows[1], rows[0]] + rows[2:] + ["1248273512.1 0.1"]))
+    r = wb("omni", "--scenario", "mrclam", "--data", str(d), "--robot", "1", "--end-time", "60",
+           "--estimators", "odometry,ekf", "--out", str(tmp_path / "q.rrd"), "--metrics", str(tmp_path / "q.json"))
+    assert r.returncode == 0, r.stderr
+    assert "warning: Robot1_Odometry.dat: 2 row(s) out of time order" in r.stderr
+    assert "warning: Robot1_Odometry.dat: line" in r.stderr and "cut short" in r.stderr
+    repairs = json.loads((tmp_path / "q.json").read_text())["data_repairs"]
+    assert repairs["odometry_reordered"] == 2 and repairs["cut_last_line"] == 1
+    t = float(rows[100].split()[0])
+    bad = rows[:200] + [f"{t - 60.0:.3f} 0.0 0.0\n"] + rows[200:]
+    (d / "Robot1_Odometry.dat").write_text("".join(head + bad))
+    r = wb("omni", "--scenario", "mrclam", "--data", str(d), "--robot", "1", "--out", str(tmp_path / "b.rrd"))
+    assert r.returncode == 2 and "time goes backwards" in r.stderr and len(r.stderr.strip().splitlines()) == 1

@@ -81,18 +81,20 @@ def execute(exp, scenario: str | None, out: Path | None, force: bool, metrics: P
     from workbench import api
 
     bar, task = _progress()
+    from workbench.errors import DataWarning
     from workbench.recording.stream import VIEWER_PORT, LiveWarning
 
     with bar, warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("ignore", RuntimeWarning)  # the failures are printed below
         warnings.simplefilter("always", LiveWarning)
+        warnings.simplefilter("always", DataWarning)
         res = api.run(exp, scenario, estimators=estimators, out=out or RECORDINGS / f"{exp.name}.rrd",
                       metrics=metrics, force=force, jobs=jobs, spawn=spawn, serve=serve, connect=connect,
                       extras=extras, progress=lambda done, total: bar.update(task, completed=done, total=total),
                       **overrides)
-    for w in caught:
-        if issubclass(w.category, LiveWarning):
-            typer.echo(f"warning: {w.message}", err=True)
+    said = dict.fromkeys(str(w.message) for w in caught if issubclass(w.category, (LiveWarning, DataWarning)))
+    for line in said:  # a real log is read once per run: each repair said once
+        typer.echo(f"warning: {line}", err=True)
     if not quiet:
         wall = res.metrics.get("wall_seconds")
         lines = ([f"recording: {res.recording}"] if res.recording else []) + (

@@ -14,3 +14,9 @@ def require(condition: bool, message: str) -> None:
 class DataNotFound(WorkbenchError):
     """Real data that is not where it was looked for: the demo skips a scenario for this
     reason alone; every other error fails it."""
+
+
+class DataWarning(UserWarning):
+    """Real data that needed a repair to be read (rows put back in time order, a truncated last
+    line left out, repeated time stamps): the command line prints one line for each, the
+    metrics count them."""

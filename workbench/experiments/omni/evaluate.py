@@ -73,6 +73,7 @@ class RunSummary:
     delays: dict[str, float] = field(default_factory=dict)  # each estimator's delay (its bound)
     aligned: dict[str, np.ndarray] = field(default_factory=dict)  # errors after the best rigid alignment
     alignment: dict[str, tuple[float, float, float]] = field(default_factory=dict)  # its rotation, translation
+    repairs: dict = field(default_factory=dict)  # what the real data needed to be read (omni.real)
     bounds: dict = field(default_factory=dict)  # delay -> {position, heading} (G,) variances; "map" (N,)
 
 
@@ -108,7 +109,7 @@ def summarise(result: RunResult, cfg: OmniConfig, run: int) -> RunSummary:
                       {n: e.seconds for n, e in result.estimates.items()},
                       {n: e.failures for n, e in result.estimates.items()},
                       result.images.stats if result.images is not None else None, dict(result.failed),
-                      delays, aligned=aligned, alignment=alignment, bounds=crb)
+                      delays, aligned=aligned, alignment=alignment, bounds=crb, repairs=dict(data.repairs or {}))
 
 
 def bound_kind(delay: float) -> str:
@@ -204,6 +205,8 @@ def statistics(cfg: OmniConfig, runs: list[RunSummary], label: str = "") -> dict
         if crb is not None:
             entry["bound"], entry["efficiency"], entry["efficiency_se"], entry["bound_kind"] = crb
         out["estimators"][name] = entry
+    if runs[0].repairs:
+        out["data_repairs"] = runs[0].repairs
     if runs[0].images is not None:
         keys = runs[0].images
         out["images"] = {k: _mean(np.array([r.images[k] for r in runs], float)) for k in keys if k != "bad_frames"}

@@ -24,10 +24,17 @@ Readings taken here (say so where a caller might assume otherwise):
 
 * Times stay absolute (Unix seconds, float64 keeps the files' millisecond resolution);
   :attr:`MrclamLog.t0` is the start of the kept stretch, for plotting ``t - t0``.
-* Odometry and ground truth sometimes repeat a time stamp (robot 2's odometry does once);
-  the last row of each repeat is kept, so their times are strictly increasing, and the
-  repeats are counted. Measurements share time stamps (several landmarks in one image), so
-  their times are only non-decreasing. Any time going backwards is an error.
+* Real files have quirks a loader must meet rather than refuse; each repair is counted in
+  :attr:`MrclamLog.repairs` and said in a :class:`~workbench.errors.DataWarning`:
+  a row stamped out of time order by up to ``MAX_BACKSTEP`` seconds is put back in order
+  (another MRCLAM dataset's odometry stamps its first sample 0.1 s after its second);
+  a last line cut short (a log whose writer stopped mid-line) is left out; odometry and
+  ground truth that repeat a time stamp (robot 2's odometry does once) keep the last row of
+  each repeat, so their times are strictly increasing; gaps in the odometry over
+  ``GAP`` seconds are counted (the motion model's noise grows with a step's duration, so
+  they need no repair). Measurements share time stamps (several landmarks in one image), so
+  their times are only non-decreasing. Time running backwards by more than ``MAX_BACKSTEP``,
+  no rows, or too few columns anywhere but the last line stay errors.
 * The default stretch starts where the start pose is known from the ground truth *and*
   odometry exists: at the first ground-truth time, or at the first odometry time if that
   is later (in MRCLAM 6 the Vicon starts about 12 s before the odometry and the robots stand
@@ -44,7 +51,7 @@ from pathlib import Path
 
 import numpy as np
 
-from workbench.errors import DataNotFound, WorkbenchError
+from workbench.errors import DataNotFound, DataWarning, WorkbenchError
 from workbench.estimation.angles import wrap
 
 ROBOT_SUBJECTS = frozenset(range(1, 6))
@@ -52,6 +59,11 @@ ROBOT_SUBJECTS = frozenset(range(1, 6))
 
 MAX_TRUTH_GAP = 0.5
 """Default longest ground-truth gap (s) :meth:`MrclamLog.truth_at` interpolates across."""
+MAX_BACKSTEP = 1.0
+"""The furthest back (s) a row's time stamp may lie and still be put back in order (a clock's
+jitter, a row written late); beyond it the file's time runs backwards and is refused."""
+GAP = 0.5
+"""An odometry gap (s) counted as one in :attr:`MrclamLog.repairs`."""
 
 _KINDS = {"odometry": "Odometry", "measurement": "Measurement", "groundtruth": "Groundtruth"}
 _ROBOT_FILE = re.compile(r"^Robot(\d+)_(Odometry|Measurement|Groundtruth)\.dat$")
@@ -87,6 +99,7 @@ class MrclamLog:
     t0: float
     t_end: float
     source: Path = field(default_factory=Path)
+    repairs: dict[str, int] = field(default_factory=dict)  # what was repaired to read the files (see the module)
 
     MEASUREMENT_DROPS = ("robot", "unknown", "no_truth")
 
@@ -172,12 +185,17 @@ def load(folder: Path, robot: int, t_start: float | None = None, t_end: float | 
     landmarks = _read_landmarks(folder / "Landmark_Groundtruth.dat")
     subject_of = _read_barcodes(folder / "Barcodes.dat")
 
-    odom = _read_table(files["odometry"], 3)
-    _check_time(files["odometry"], odom[:, 0])
-    meas = _read_table(files["measurement"], 4, int_cols=(1,))
-    _check_time(files["measurement"], meas[:, 0])
-    truth = _read_table(files["groundtruth"], 4)
-    _check_time(files["groundtruth"], truth[:, 0])
+    repairs: dict[str, int] = {}
+    odom = _in_order(files["odometry"], _read_table(files["odometry"], 3, repairs=repairs), repairs)
+    meas = _in_order(files["measurement"], _read_table(files["measurement"], 4, int_cols=(1,), repairs=repairs),
+                     repairs)
+    truth = _in_order(files["groundtruth"], _read_table(files["groundtruth"], 4, repairs=repairs), repairs)
+    gaps = int(np.sum(np.diff(odom[:, 0]) > GAP))
+    if gaps:
+        repairs["odometry_gaps"] = gaps
+        longest = float(np.max(np.diff(odom[:, 0])))
+        _say(files["odometry"], f"{gaps} gap(s) over {GAP:g} s between rows (longest {longest:.2f} s); "
+                                "the motion model's noise grows over them")
 
     t0 = float(max(truth[0, 0], odom[0, 0])) if t_start is None else float(t_start)
     if t_end is None:
@@ -198,10 +216,14 @@ def load(folder: Path, robot: int, t_start: float | None = None, t_end: float | 
         raise WorkbenchError(f"{files['odometry']}: no odometry between {t0:.3f} and {t1:.3f} s "
                              f"(the file spans {span})")
     odom, odom_repeat = _last_of_repeats(odom)
+    if odom_repeat:
+        _say(files["odometry"], f"{odom_repeat} repeated time stamp(s): the last row of each kept")
     meas = meas[_between(meas[:, 0], t0, t1)]
     lo = max(int(np.searchsorted(truth[:, 0], t0, side="right")) - 1, 0)
     hi = int(np.searchsorted(truth[:, 0], t1, side="left")) + 1
     truth, truth_repeat = _last_of_repeats(truth[lo:hi])
+    if truth_repeat:
+        _say(files["groundtruth"], f"{truth_repeat} repeated time stamp(s): the last row of each kept")
 
     barcode = meas[:, 1].astype(int)
     subject = np.array([subject_of.get(int(b), -1) for b in barcode], dtype=int)
@@ -220,7 +242,7 @@ def load(folder: Path, robot: int, t_start: float | None = None, t_end: float | 
         meas_t=meas[:, 0].copy(), meas_landmark=subject[is_landmark],
         meas_bearing=np.asarray(wrap(meas[:, 3]), dtype=float).reshape(-1),
         truth_t=truth[:, 0].copy(), truth_pose=pose,
-        landmarks=landmarks, dropped=dropped, t0=t0, t_end=t1, source=folder,
+        landmarks=landmarks, dropped=dropped, t0=t0, t_end=t1, source=folder, repairs=repairs,
     )
 
 
@@ -258,11 +280,12 @@ def _line_of(path: Path, row: int) -> int:
     return _data_lines(path)[row][0]
 
 
-def _read_table(path: Path, ncols: int, int_cols: tuple[int, ...] = ()) -> np.ndarray:
+def _read_table(path: Path, ncols: int, int_cols: tuple[int, ...] = (), repairs: dict | None = None) -> np.ndarray:
     """The first ``ncols`` columns of a whitespace-separated ``#``-commented file, as floats.
 
     The fast path is numpy's C parser; only when it fails is the file scanned line by line to
-    name the offending line.
+    name the offending line. A last line cut short is left out (and counted in ``repairs``)
+    where ``repairs`` is given.
     """
     _check_file(path)
     try:
@@ -271,9 +294,12 @@ def _read_table(path: Path, ncols: int, int_cols: tuple[int, ...] = ()) -> np.nd
             table = np.loadtxt(path, comments="#", usecols=range(ncols), ndmin=2, dtype=float,
                                encoding="latin-1")
     except (ValueError, UnicodeDecodeError) as exc:
-        _diagnose(path, ncols)
-        first = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
-        raise WorkbenchError(f"{path}: cannot parse: {first}") from None
+        table = _without_cut_last_line(path, ncols) if repairs is not None else None
+        if table is None:
+            _diagnose(path, ncols)
+            first = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+            raise WorkbenchError(f"{path}: cannot parse: {first}") from None
+        repairs["cut_last_line"] = repairs.get("cut_last_line", 0) + 1
     if table.shape[0] == 0:
         raise WorkbenchError(f"{path}: no data rows (the file is empty or only comments)")
     bad = ~np.isfinite(table)
@@ -288,6 +314,41 @@ def _read_table(path: Path, ncols: int, int_cols: tuple[int, ...] = ()) -> np.nd
             raise WorkbenchError(f"{path}: line {_line_of(path, row)}: column {col + 1} should be an "
                                  f"integer, got {table[row, col]:g}")
     return table
+
+
+def _without_cut_last_line(path: Path, ncols: int) -> np.ndarray | None:
+    """The table without its last data line, if that line alone is cut short: fewer columns than
+    the table's (a log whose writer stopped mid-line; its last number may be cut too); None if
+    anything else is wrong."""
+    lines = _data_lines(path)
+    if len(lines) < 2 or b"\0" in path.read_bytes():
+        return None
+
+    def good(tokens: list[str]) -> bool:
+        try:
+            [float(t) for t in tokens[:ncols]]
+        except ValueError:
+            return False
+        return len(tokens) >= ncols
+
+    last = lines[-1][1]
+    cut = len(last) < ncols and all(_number(t) for t in last[:-1])
+    if not cut or not all(good(tokens) for _, tokens in lines[:-1]):
+        return None
+    _say(path, f"line {lines[-1][0]} is cut short ({' '.join(lines[-1][1])[:40]!r}): left out")
+    return np.array([[float(t) for t in tokens[:ncols]] for _, tokens in lines[:-1]])
+
+
+def _number(token: str) -> bool:
+    try:
+        float(token)
+    except ValueError:
+        return False
+    return True
+
+
+def _say(path: Path, what: str) -> None:
+    warnings.warn(DataWarning(f"{path.name}: {what}"), stacklevel=3)
 
 
 def _diagnose(path: Path, ncols: int) -> None:
@@ -306,14 +367,29 @@ def _diagnose(path: Path, ncols: int) -> None:
                                      f"{col} as a number") from None
 
 
-def _check_time(path: Path, t: np.ndarray) -> None:
-    """Time must not go backwards (repeats are allowed here and handled by the caller)."""
-    back = np.flatnonzero(np.diff(t) < 0)
-    if back.size:
-        row = int(back[0]) + 1
+def _in_order(path: Path, table: np.ndarray, repairs: dict) -> np.ndarray:
+    """The rows in time order: rows stamped up to ``MAX_BACKSTEP`` s out of order are put back
+    (counted in ``repairs``); time running further back is an error naming the lines (repeats are
+    allowed here and handled by the caller)."""
+    t = table[:, 0]
+    step = np.diff(t)
+    if not (step < 0).any():
+        return table
+    latest = np.maximum.accumulate(t)
+    behind = latest[:-1] - t[1:]                        # how far each row lies behind the latest before it
+    if behind.max() > MAX_BACKSTEP:
+        row = int(np.argmax(behind > MAX_BACKSTEP)) + 1
         lines = _data_lines(path)
+        prev = row - 1 - int(np.argmax(t[:row][::-1] == latest[row - 1]))   # the latest row before it
         raise WorkbenchError(f"{path}: line {lines[row][0]}: time goes backwards, {t[row]:.3f} s after "
-                             f"{t[row - 1]:.3f} s on line {lines[row - 1][0]}")
+                             f"{latest[row - 1]:.3f} s on line {lines[prev][0]} (more than {MAX_BACKSTEP:g} s: "
+                             "not a row out of order)")
+    order = np.argsort(t, kind="stable")
+    moved = int(np.sum(order != np.arange(len(t))))
+    key = f"{path.stem.split('_')[-1].lower()}_reordered"
+    repairs[key] = repairs.get(key, 0) + moved
+    _say(path, f"{moved} row(s) out of time order (by up to {behind.max():.3f} s): put back in order")
+    return table[order]
 
 
 def _read_landmarks(path: Path) -> dict[int, np.ndarray]:

@@ -66,4 +66,5 @@ def load(cfg: OmniConfig) -> OmniData:
         t=t, controls=controls, motion=motion, start=start, start_cov=np.diag(np.square(START_SIGMA)),
         truth=truth, meas_step=step[order], meas_lm=meas_lm[order], meas_bearing=log.meas_bearing[order],
         sigma_bearing=cfg.sigma_bearing, landmark_ids=ids, landmarks=positions, fov=fov,
-        max_range=cfg.max_range, label=f"MRCLAM {where.name} robot {cfg.robot}")
+        max_range=cfg.max_range, label=f"MRCLAM {where.name} robot {cfg.robot}",
+        repairs={**log.repairs, **{f"dropped_{k}": v for k, v in log.dropped.items() if v}})

@@ -44,6 +44,9 @@ def table(stats: dict) -> str:
         if e["failures"]:
             bits.append(f"{e['failures']} rejected update(s)")
         lines.append(f"- {name}: " + "; ".join(bits))
+    if stats.get("data_repairs"):
+        lines += ["", "Reading the log: " + ", ".join(f"{k.replace('_', ' ')} {v}"
+                                                      for k, v in stats["data_repairs"].items())]
     lines += [""] + bounds.table(stats, (("position", "m"), ("heading", "deg"), ("map", "m")))
     im = stats.get("images")
     if im:

@@ -48,6 +48,7 @@ class OmniData:
     label: str
     walls: np.ndarray | None = None
     grid: np.ndarray | None = None
+    repairs: dict | None = None   # what a real log needed to be read (mrclam.MrclamLog.repairs), and its drops
 
     @property
     def dt(self) -> np.ndarray:
