@@ -74,6 +74,7 @@ class BearingEkf:
         self.linear = cfg.ekf_init == "linear"
         self.second_order = cfg.ekf_second_order
         self.failures = 0
+        self.gated = 0
         self.attempts: list = []
 
     # --- (7)-(8) ---------------------------------------------------------------------------
@@ -146,6 +147,7 @@ class BearingEkf:
         if math.isfinite(self.gate):
             keep = nu**2 / np.diag(S) <= self.gate
             if not keep.all():
+                self.gated += int(np.sum(~keep))
                 H, nu, PH = H[keep], nu[keep], PH[:, keep]
                 S = S[np.ix_(keep, keep)]
                 if len(nu) == 0:
@@ -298,7 +300,7 @@ def run(data: OmniData, cfg: OmniConfig, augmentation: str, name: str, trace: bo
     if K > last:
         poses[last + 1:], covs[last + 1:] = f.predict(data.controls[last:], dt[last:])
     return SlamEstimate(name, np.arange(K + 1), poses, covs, map_steps, map_mean, map_cov,
-                        f.first_seen, f.init_step, failures=f.failures, attempts=f.attempts)
+                        f.first_seen, f.init_step, failures=f.failures, gated=f.gated, attempts=f.attempts)
 
 
 def odometry(data: OmniData, name: str = "odometry") -> SlamEstimate:

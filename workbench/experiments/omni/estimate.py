@@ -24,8 +24,9 @@ class SlamEstimate:
     ``x, y, phi`` covariance; NaN where unknown). ``map_steps`` are the steps where the map
     was snapshotted, ``map_mean (S, N, 2)`` / ``map_cov (S, N, 2, 2)`` the landmarks then (NaN
     while a landmark is not initialised). ``first_seen`` / ``init_step`` per landmark (-1:
-    never). ``attempts`` (recorded run only): ``(step, landmark, sigma images (2n+1, 2),
-    accepted)`` of every initialisation try.
+    never). ``gated``: bearings a chi-square gate left out (misreads, outliers). ``attempts``
+    (recorded run only): ``(step, landmark, sigma images (2n+1, 2), accepted)`` of every
+    initialisation try.
     """
 
     name: str = ""
@@ -39,6 +40,7 @@ class SlamEstimate:
     init_step: np.ndarray | None = None
     seconds: float = 0.0
     failures: int = 0
+    gated: int = 0  # bearings left out by a chi-square gate (``nis_gate``)
     attempts: list = field(default_factory=list)
 
     @property

@@ -73,6 +73,7 @@ class RunSummary:
     delays: dict[str, float] = field(default_factory=dict)  # each estimator's delay (its bound)
     aligned: dict[str, np.ndarray] = field(default_factory=dict)  # errors after the best rigid alignment
     alignment: dict[str, tuple[float, float, float]] = field(default_factory=dict)  # its rotation, translation
+    gated: dict[str, int] = field(default_factory=dict)  # bearings each estimator's gate left out
     repairs: dict = field(default_factory=dict)  # what the real data needed to be read (omni.real)
     bounds: dict = field(default_factory=dict)  # delay -> {position, heading} (G,) variances; "map" (N,)
 
@@ -109,7 +110,8 @@ def summarise(result: RunResult, cfg: OmniConfig, run: int) -> RunSummary:
                       {n: e.seconds for n, e in result.estimates.items()},
                       {n: e.failures for n, e in result.estimates.items()},
                       result.images.stats if result.images is not None else None, dict(result.failed),
-                      delays, aligned=aligned, alignment=alignment, bounds=crb, repairs=dict(data.repairs or {}))
+                      delays, aligned=aligned, alignment=alignment, bounds=crb, repairs=dict(data.repairs or {}),
+                      gated={n: e.gated for n, e in result.estimates.items()})
 
 
 def bound_kind(delay: float) -> str:
@@ -192,6 +194,7 @@ def statistics(cfg: OmniConfig, runs: list[RunSummary], label: str = "") -> dict
                              "max": _max(D)},
             "coverage": float(np.mean(np.isfinite(pos))),
             "failures": int(sum(r.failures[name] for r in runs)),
+            "bearings_gated": int(sum(r.gated.get(name, 0) for r in runs)),
             "seconds": float(np.mean([r.seconds[name] for r in runs])),
         }
         A = np.stack([r.aligned[name] for r in runs])

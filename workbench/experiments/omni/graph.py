@@ -34,6 +34,7 @@ import numpy as np
 from gtsam.symbol_shorthand import L, X
 
 from workbench.estimation.angles import wrap
+from workbench.estimation.metrics import chi2_quantile
 from workbench.experiments.omni.config import OmniConfig
 from workbench.experiments.omni.estimate import SlamEstimate
 from workbench.experiments.omni.scenario import OmniData, keyframe_steps
@@ -199,6 +200,19 @@ def _pose(p: gtsam.Pose2) -> np.ndarray:
     return np.array([p.x(), p.y(), p.theta()])
 
 
+def compose_cov(pose: np.ndarray, cov: np.ndarray, rel: gtsam.Pose2, rel_body: np.ndarray) -> np.ndarray:
+    """The world-frame covariance of ``pose (+) rel`` from ``pose``'s ``cov`` and ``rel``'s
+    covariance ``rel_body`` (GTSAM's tangent space at the later pose, as the odometry factors
+    hold it): first order, ``F cov F' + G C G'`` with ``F`` the composition's Jacobian in the
+    earlier pose and ``G = diag(R(phi), 1)`` taking ``rel`` from the earlier pose's frame."""
+    c, s = math.cos(pose[2]), math.sin(pose[2])
+    dx, dy = c * rel.x() - s * rel.y(), s * rel.x() + c * rel.y()
+    f = np.array([[1.0, 0.0, -dy], [0.0, 1.0, dx], [0.0, 0.0, 1.0]])
+    g = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    rel_earlier = _to_body(rel_body, -rel.theta())
+    return f @ cov @ f.T + g @ rel_earlier @ g.T
+
+
 JUMP_POSITION = 2.0
 JUMP_HEADING = math.radians(10.0)
 
@@ -265,6 +279,12 @@ class _Incremental:
         self.passes = 0
         self.last_pass = 0.0
         self.done = -1
+        # the bearing gate (``nis_gate`` > 0): the chain's pose covariance (world frame) since
+        # the last LM pass, each landmark's marginal at that pass, the bearings left out
+        self.gate = chi2_quantile(cfg.nis_gate, 1) if cfg.nis_gate > 0.0 else math.inf
+        self.chain_cov = np.asarray(data.start_cov, float).copy()
+        self.point_cov: dict[int, np.ndarray] = {}
+        self.rejected: set[tuple[int, int]] = set()
 
     def step(self, e: int) -> np.ndarray:
         """Add keyframe ``e`` (its odometry, its bearings, the landmarks it completes); update.
@@ -277,6 +297,7 @@ class _Incremental:
             odo, cov = kf.between[e - 1]
             motion.add(gtsam.BetweenFactorPose2(X(e - 1), X(e), odo, _noise(cov)))
             self.current = self.current.compose(odo)
+            self.chain_cov = compose_cov(_pose(self.chain), self.chain_cov, odo, cov)
             self.chain = self.chain.compose(odo)
         pose_value.insert(X(e), self.current)
         self.known[e] = _pose(self.current)
@@ -287,6 +308,9 @@ class _Incremental:
             lm, b = int(lm), float(b)
             if self.first_seen[lm] < 0:
                 self.first_seen[lm] = kf.steps[e]
+            if marks.inserted[lm] and not self._consistent(lm, b):
+                self.rejected.add((e, lm))
+                continue
             factors, point = marks.observe(e, lm, b, self.known.__getitem__)
             for factor in factors:
                 sights.add(factor)
@@ -340,6 +364,46 @@ class _Incremental:
 
     runaways = 0
 
+    def _consistent(self, lm: int, bearing: float) -> bool:
+        """The chi-square gate on a bearing of a landmark in the graph (``nis_gate``, the same
+        probability as the EKF's): its residual against the last LM pass's answer carried on with
+        the odometry, over the variance of that prediction (the chain pose's covariance grown
+        by the odometry since the pass, the landmark's marginal at the pass, ignoring their
+        correlation) plus the bearing's own. A bearing far outside is a misread: in MRCLAM
+        dataset 6 robot 3 reads landmark 11's barcode as 20's four times at 255 s (172 deg from
+        where 20 is), robot 5 likewise at 582 s and 682-684 s; taken in, the squared error of
+        those four outweighs turning the whole trajectory by 50 deg, and LM does (measured)."""
+        if not math.isfinite(self.gate):
+            return True
+        pose = _pose(self.chain)
+        point = self.points[lm]
+        d = point - pose[:2]
+        q = float(d @ d)
+        if q < 1e-12:
+            return True
+        r = float(wrap(bearing - (math.atan2(d[1], d[0]) - pose[2])))
+        h_point = np.array([-d[1], d[0]]) / q
+        h_pose = np.array([d[1] / q, -d[0] / q, -1.0])
+        s = float(h_pose @ self.chain_cov @ h_pose) + self.data.sigma_bearing ** 2
+        cov = self.point_cov.get(lm)
+        if cov is not None and np.isfinite(cov).all():
+            s += float(h_point @ cov @ h_point)
+        return r * r <= self.gate * s
+
+    def _marginals(self, result: gtsam.Values, e: int) -> None:
+        """The newest pose's and the landmarks' marginals at an LM pass's answer (the gate's
+        start); kept as they were if GTSAM cannot compute them."""
+        if not math.isfinite(self.gate):
+            return
+        try:
+            marginals = gtsam.Marginals(self.everything, result)
+            heading = np.array([result.atPose2(X(e)).theta()])
+            self.chain_cov = to_world(marginals.marginalCovariance(X(e))[None], heading)[0]
+            for lm in self.points:
+                self.point_cov[lm] = marginals.marginalCovariance(L(lm))
+        except RuntimeError:
+            pass
+
     def _update(self, graph: gtsam.NonlinearFactorGraph, values: gtsam.Values) -> bool:
         """``isam.update`` and the newest pose's estimate; False if GTSAM throws (an
         indeterminate system; the solver is then rebuilt by an LM pass)."""
@@ -365,6 +429,7 @@ class _Incremental:
         self.passes += 1
         self.start = result
         self.chain = result.atPose2(X(e))
+        self._marginals(result, e)
         for k in range(e + 1):
             self.known[k] = _pose(result.atPose2(X(k)))
         for lm in self.points:
@@ -414,7 +479,7 @@ def isam2(data: OmniData, cfg: OmniConfig, kf: Keyframes | None = None, map_ever
             map_cov.append(cov)
     return SlamEstimate("isam2", kf.steps.copy(), poses, to_world(covs, poses[:, 2]), np.array(map_steps),
                         np.array(map_mean), np.array(map_cov), inc.first_seen, inc.init_step,
-                        failures=inc.failures)
+                        failures=inc.failures, gated=len(inc.rejected))
 
 
 def _marginal(isam: gtsam.ISAM2, key: int, dim: int) -> np.ndarray:
@@ -438,7 +503,7 @@ def batch(data: OmniData, cfg: OmniConfig, kf: Keyframes | None = None,
     """
     kf = kf or keyframes(data, cfg)
     n_lm, E = len(data.landmarks), len(kf.steps)
-    start_poses, start_map = _batch_start(data, cfg, kf, initial)
+    start_poses, start_map, rejected = _batch_start(data, cfg, kf, initial)
     marks = _Landmarks(n_lm, data.sigma_bearing, math.radians(cfg.graph_parallax_deg), cfg.huber)
     graph, values = gtsam.NonlinearFactorGraph(), gtsam.Values()
     graph.add(_prior(data))
@@ -455,6 +520,8 @@ def batch(data: OmniData, cfg: OmniConfig, kf: Keyframes | None = None,
             lm, b = int(lm), float(b)
             if first_seen[lm] < 0:
                 first_seen[lm] = kf.steps[e]
+            if (e, lm) in rejected:
+                continue
             preset = start_map[lm] if np.isfinite(start_map[lm]).all() else None
             factors, point = marks.observe(e, lm, b, lambda k: start_poses[k], preset)
             for factor in factors:
@@ -478,22 +545,24 @@ def batch(data: OmniData, cfg: OmniConfig, kf: Keyframes | None = None,
     for lm in np.flatnonzero(marks.inserted):
         mean[lm] = result.atPoint2(L(int(lm)))
     return SlamEstimate("gtsam-batch", kf.steps.copy(), poses, to_world(covs, poses[:, 2]),
-                        np.array([kf.steps[-1]]), mean[None], lm_cov[None], first_seen, init_step)
+                        np.array([kf.steps[-1]]), mean[None], lm_cov[None], first_seen, init_step,
+                        gated=len(rejected))
 
 
 def _batch_start(data: OmniData, cfg: OmniConfig, kf: Keyframes, initial: SlamEstimate | None
-                 ) -> tuple[np.ndarray, np.ndarray]:
+                 ) -> tuple[np.ndarray, np.ndarray, set[tuple[int, int]]]:
     """The batch's starting poses at the keyframes ``(E, 3)`` and landmarks ``(N, 2)`` (NaN:
-    triangulate from the starting poses)."""
+    triangulate from the starting poses), and the bearings ``(keyframe, landmark)`` that the
+    grown graph's gate left out (the batch leaves them out too)."""
     n_lm = len(data.landmarks)
     if initial is not None:
         where = np.clip(np.searchsorted(initial.steps, kf.steps), 0, len(initial.steps) - 1)
         if not np.array_equal(initial.steps[where], kf.steps) or not np.isfinite(initial.pose[where]).all():
             raise ValueError("the batch's initial estimate needs a finite pose at every keyframe")
-        return initial.pose[where], initial.final_map.copy()
+        return initial.pose[where], initial.final_map.copy(), set()
     if cfg.lm_every > 0.0:
         inc = _Incremental(data, cfg, kf, solver=False)
         for e in range(len(kf.steps)):
             inc.step(e)
-        return inc.estimate()
-    return kf.dead_reckoning, np.full((n_lm, 2), np.nan)
+        return (*inc.estimate(), inc.rejected)
+    return kf.dead_reckoning, np.full((n_lm, 2), np.nan), set()

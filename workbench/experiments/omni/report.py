@@ -43,6 +43,8 @@ def table(stats: dict) -> str:
             bits.append(f"mean NEES inside the band at {100 * e['nees_inside_band']:.0f} % of steps")
         if e["failures"]:
             bits.append(f"{e['failures']} rejected update(s)")
+        if e.get("bearings_gated"):
+            bits.append(f"{e['bearings_gated']} bearing(s) left out by the gate (misreads, outliers)")
         lines.append(f"- {name}: " + "; ".join(bits))
     if stats.get("data_repairs"):
         lines += ["", "Reading the log: " + ", ".join(f"{k.replace('_', ' ')} {v}"
