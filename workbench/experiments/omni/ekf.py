@@ -74,7 +74,7 @@ class BearingEkf:
         self.linear = cfg.ekf_init == "linear"
         self.second_order = cfg.ekf_second_order
         self.failures = 0
-        self.gated = 0
+        self.gated: list[int] = []  # the bearings (dataset indices) the NIS gate left out
         self.attempts: list = []
 
     # --- (7)-(8) ---------------------------------------------------------------------------
@@ -123,8 +123,9 @@ class BearingEkf:
         BC = B @ C
         return 0.5 * np.trace(BC, axis1=1, axis2=2), 0.5 * np.einsum("kij,kji->k", BC, BC)
 
-    def update(self, lms: np.ndarray, bearings: np.ndarray) -> None:
-        """Update with bearings of initialised landmarks, all at once.
+    def update(self, lms: np.ndarray, bearings: np.ndarray, index: np.ndarray | None = None) -> None:
+        """Update with bearings of initialised landmarks, all at once (``index``: their indices in
+        the dataset, to note those the NIS gate leaves out).
 
         With ``ekf_second_order`` each bearing's innovation gets the second-order terms of
         (9): its mean shifts by ``tr(B C) / 2`` and its variance grows by ``tr(B C B C) / 2``
@@ -135,6 +136,7 @@ class BearingEkf:
         uncertain), where the first-order update collapses the covariance onto a wrong pose."""
         if len(lms) == 0:
             return
+        index = np.full(len(lms), -1) if index is None else np.asarray(index)
         off = self.slot[lms]
         h, H = self._predicted(self.x, off)
         nu = wrap(bearings - h)
@@ -147,7 +149,7 @@ class BearingEkf:
         if math.isfinite(self.gate):
             keep = nu**2 / np.diag(S) <= self.gate
             if not keep.all():
-                self.gated += int(np.sum(~keep))
+                self.gated.extend(int(i) for i in index[~keep])
                 H, nu, PH = H[keep], nu[keep], PH[:, keep]
                 S = S[np.ix_(keep, keep)]
                 if len(nu) == 0:
@@ -277,7 +279,7 @@ def run(data: OmniData, cfg: OmniConfig, augmentation: str, name: str, trace: bo
             last = step
         lms, bearings = data.meas_lm[idx], data.meas_bearing[idx]
         known = f.slot[lms] >= 0
-        f.update(lms[known], bearings[known])
+        f.update(lms[known], bearings[known], idx[known])
         now = data.t[step]
         for lm, b in zip(lms[~known], bearings[~known], strict=True):
             lm = int(lm)
@@ -300,7 +302,8 @@ def run(data: OmniData, cfg: OmniConfig, augmentation: str, name: str, trace: bo
     if K > last:
         poses[last + 1:], covs[last + 1:] = f.predict(data.controls[last:], dt[last:])
     return SlamEstimate(name, np.arange(K + 1), poses, covs, map_steps, map_mean, map_cov,
-                        f.first_seen, f.init_step, failures=f.failures, gated=f.gated, attempts=f.attempts)
+                        f.first_seen, f.init_step, failures=f.failures, gated_bearings=np.array(f.gated, int),
+                        attempts=f.attempts)
 
 
 def odometry(data: OmniData, name: str = "odometry") -> SlamEstimate:

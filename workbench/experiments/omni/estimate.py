@@ -24,7 +24,8 @@ class SlamEstimate:
     ``x, y, phi`` covariance; NaN where unknown). ``map_steps`` are the steps where the map
     was snapshotted, ``map_mean (S, N, 2)`` / ``map_cov (S, N, 2, 2)`` the landmarks then (NaN
     while a landmark is not initialised). ``first_seen`` / ``init_step`` per landmark (-1:
-    never). ``gated``: bearings a chi-square gate left out (misreads, outliers). ``attempts``
+    never). ``gated_bearings``: the bearings (indices into the dataset's) a chi-square gate
+    left out (misreads, outliers; -1 for a bearing not the dataset's, the image stage's). ``attempts``
     (recorded run only): ``(step, landmark, sigma images (2n+1, 2), accepted)`` of every
     initialisation try.
     """
@@ -40,8 +41,13 @@ class SlamEstimate:
     init_step: np.ndarray | None = None
     seconds: float = 0.0
     failures: int = 0
-    gated: int = 0  # bearings left out by a chi-square gate (``nis_gate``)
+    gated_bearings: np.ndarray | None = None  # indices of the bearings a gate left out
     attempts: list = field(default_factory=list)
+
+    @property
+    def gated(self) -> int:
+        """How many bearings a gate left out."""
+        return 0 if self.gated_bearings is None else len(self.gated_bearings)
 
     @property
     def final_map(self) -> np.ndarray:

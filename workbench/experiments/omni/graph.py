@@ -479,7 +479,7 @@ def isam2(data: OmniData, cfg: OmniConfig, kf: Keyframes | None = None, map_ever
             map_cov.append(cov)
     return SlamEstimate("isam2", kf.steps.copy(), poses, to_world(covs, poses[:, 2]), np.array(map_steps),
                         np.array(map_mean), np.array(map_cov), inc.first_seen, inc.init_step,
-                        failures=inc.failures, gated=len(inc.rejected))
+                        failures=inc.failures, gated_bearings=gated_indices(data, kf, inc.rejected))
 
 
 def _marginal(isam: gtsam.ISAM2, key: int, dim: int) -> np.ndarray:
@@ -546,7 +546,16 @@ def batch(data: OmniData, cfg: OmniConfig, kf: Keyframes | None = None,
         mean[lm] = result.atPoint2(L(int(lm)))
     return SlamEstimate("gtsam-batch", kf.steps.copy(), poses, to_world(covs, poses[:, 2]),
                         np.array([kf.steps[-1]]), mean[None], lm_cov[None], first_seen, init_step,
-                        gated=len(rejected))
+                        gated_bearings=gated_indices(data, kf, rejected))
+
+
+def gated_indices(data: OmniData, kf: Keyframes, rejected: set[tuple[int, int]]) -> np.ndarray:
+    """The dataset's indices of the bearings ``(keyframe, landmark)`` a gate left out."""
+    if not rejected:
+        return np.zeros(0, int)
+    keys = {(int(kf.steps[e]), lm) for e, lm in rejected}
+    pairs = zip(data.meas_step.tolist(), data.meas_lm.tolist(), strict=True)
+    return np.array([i for i, key in enumerate(pairs) if key in keys], int)
 
 
 def _batch_start(data: OmniData, cfg: OmniConfig, kf: Keyframes, initial: SlamEstimate | None

@@ -3,8 +3,9 @@
 Entity layout (timeline ``time``, seconds of the recorded run 0):
 
 * ``world/{walls,landmarks}`` (static), ``world/truth/{path,vehicle}``;
-* ``map/<estimator>/{path,vehicle,pose_ellipse,landmarks,landmark_ellipses,rays}`` and, for
-  the filters, ``map/<estimator>/pending`` (the UT sigma images of each initialisation try);
+* ``map/<estimator>/{path,vehicle,pose_ellipse,landmarks,landmark_ellipses,rays,gated}``
+  (``gated``: the bearings its gate left out, red) and, for the filters,
+  ``map/<estimator>/pending`` (the UT sigma images of each initialisation try);
 * ``errors/{position,heading}/<estimator>``, ``sigma/{position,heading}/<estimator>``,
   ``nees/<estimator>`` with ``nees/band_{lo,hi}`` (one run, 3 dof, 95 %);
 * ``monte_carlo/{position,heading,nees}/<estimator>`` over all runs, with the band for that
@@ -123,10 +124,16 @@ def scene(first: RunResult) -> np.ndarray:
     return np.concatenate([d.walls if d.walls is not None else d.landmarks, d.truth[first.grid, :2]])
 
 
-def _rays(first: RunResult, pose: np.ndarray, length: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Bearing rays drawn from an estimate's pose at each epoch: times, counts, starts, ends."""
+def _rays(first: RunResult, pose: np.ndarray, length: float, only: np.ndarray | None = None
+          ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Bearing rays drawn from an estimate's pose at each epoch: times, counts, starts, ends
+    (``only``: just these bearings, the dataset's indices)."""
     d = first.data
     epochs = d.epochs()
+    if only is not None:
+        chosen = set(int(i) for i in only if i >= 0)
+        epochs = [(s, np.array([i for i in idx if int(i) in chosen], int)) for s, idx in epochs]
+        epochs = [(s, idx) for s, idx in epochs if len(idx)]
     where = {int(s): i for i, s in enumerate(first.grid)}
     t, counts, starts, ends = [], [], [], []
     for step, idx in epochs:
@@ -192,6 +199,18 @@ def record_run(rec: rr.RecordingStream, first: RunResult, zero: RunSummary) -> N
         rt, counts, starts, ends = _rays(first, pose, ray_len)
         if len(rt):
             draw.segment_sets(rec, f"{base}/rays", TL, rt, counts, starts, ends, (255, 255, 120), 0.03)
+        if est.gated:
+            # the bearings the gate left out, red, each shown for the step it came in (misreads:
+            # MRCLAM robot 3 at 255 s, robot 5 at 582 and 682 s)
+            rt, counts, starts, ends = _rays(first, pose, ray_len, est.gated_bearings)
+            if len(rt):
+                # each cleared at the next grid time (an empty set there), so it shows for its step only
+                after = t[np.minimum(np.searchsorted(t, rt, side="right"), len(t) - 1)]
+                clear = np.setdiff1d(after, rt)
+                gt = np.r_[rt, clear]
+                order = np.argsort(gt, kind="stable")
+                gc = np.r_[counts, np.zeros(len(clear), int)][order]
+                draw.segment_sets(rec, f"{base}/gated", TL, gt[order], gc, starts, ends, (255, 40, 40), 0.06)
         if est.attempts:
             pt, clouds = _pending(first, est.attempts)
             draw.point_sets(rec, f"{base}/pending", TL, pt, clouds, (255, 140, 0), 0.12, 0.1)
@@ -216,8 +235,9 @@ def how_to_read(first: RunResult, runs: int) -> str:
         "",
         f"- colours: {draw.colour_key(shown)}; the truth white.",
         "- maps, top-down (x east, y north, m), one per estimator, on the same world: walls grey, the true "
-        "landmarks and path white; the estimator's path, pose and 95 % pose ellipse, its landmarks with their "
-        "95 % ellipses, the bearings of the step as yellow rays, and (the filters) the unscented-transform "
+                "landmarks and path white; the estimator's path, pose and 95 % pose ellipse, its landmarks with their "
+        "95 % ellipses, the bearings of the step as yellow rays, those its gate left out (misread barcodes, "
+        "outliers) as red rays, and (the filters) the unscented-transform "
         "sigma points of each landmark initialisation try in orange.",
         f"- run 0: position and heading error, and the pose NEES (3 dof) with its one-run 95 % band "
         f"({one[0]:.2f}-{one[1]:.2f}); own sigmas: the standard deviations each estimator claims.",
