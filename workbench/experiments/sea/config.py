@@ -177,7 +177,7 @@ OPTIONS: tuple[Option, ...] = (
     Option("dt", "Time step, s."),
     Option("ekf_gate", "EKF chi-square gate probability (0 = off)."),
     Option("robust", "Huber noise model in the GTSAM factors.", bool, switch="--robust/--no-robust"),
-    Option("mmsi", "ais: the ship, or 'all' (every ship with a long enough track, a table per ship) "
+    Option("mmsi", "ais: the ship, or 'all' (every ship with a long enough track, a row each) "
                    "[default: the most manoeuvring one].", str, parse=_mmsi),
     Option("data", "ais: the AIS CSV [default: <data root>/ais/...].", Path),
     Option("ais_range", "ais: camera stand-off from the track, m."),
