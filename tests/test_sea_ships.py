@@ -13,6 +13,7 @@ import workbench
 from workbench.errors import DataWarning, WorkbenchError
 from workbench.experiments import get
 from workbench.experiments.sea import ais, uav
+from workbench.recording import readback
 from workbench.sweeps import runner
 
 R = ais.EARTH_RADIUS
@@ -140,6 +141,9 @@ def test_cli_every_ship_writes_the_table_and_metrics(ais_file, tmp_path):
     assert "every ship**: 2 ship(s) run" in r.stdout and "2 run(s) in" in r.stdout
     stats = json.loads(m.read_text())
     assert set(stats["ships"]) == {"111", "222"} and stats["runs"] == 2
+    stored = readback.properties(tmp_path / "s.rrd", "workbench_metrics")["json"]  # the recording carries them too
+    stored = json.loads(stored[0] if isinstance(stored, list) else stored)
+    assert stored["ships"] == stats["ships"] and stored["over_ships"] == stats["over_ships"]
     with pytest.raises(WorkbenchError, match="ship 333 cannot be run for --duration 40 s: tracked for 30 s"):
         run(ais_file, mmsi=333)
     mmsi = next(o for o in get("sea").options if o.field == "mmsi")
