@@ -99,19 +99,21 @@ def run(experiment: str | Experiment, scenario: str | None = None, *, config: An
     t0 = time.perf_counter()
     done = [0]
 
+    total = exp.run_count(cfg)
+
     def tick(n: int) -> None:
         done[0] += n
-        report(done[0], cfg.runs)
+        report(done[0], total)
 
     live = stream.live(exp.name, cfg.to_json(), cfg.seed, spawn, serve, connect)
-    report(0, cfg.runs)
+    report(0, total)
     first = exp.run_once(cfg, 0, chosen, record=True, threads=min(2, jobs or 2))
     zero = exp.evaluate(first, cfg, 0)
     if live is not None:  # run 0 now, while the other runs compute
         live.send_blueprint(exp.blueprint(without(first, set(first.failed)), [zero]), make_active=True)
         exp.record_run(live, without(first, set(first.failed)), zero)
     worker = functools.partial(summarise_run, exp.name, cfg, chosen)
-    summaries = montecarlo.run_all(worker, cfg.runs, zero, jobs, tick)
+    summaries = montecarlo.run_all(worker, total, zero, jobs, tick)
     failures: dict[str, str] = {}
     for s in summaries:
         for name, why in s.failed.items():

@@ -99,7 +99,7 @@ def execute(exp, scenario: str | None, out: Path | None, force: bool, metrics: P
         wall = res.metrics.get("wall_seconds")
         lines = ([f"recording: {res.recording}"] if res.recording else []) + (
             [f"metrics:   {res.metrics_path}"] if res.metrics_path else []) + res.lines + (
-            [f"{res.config.runs} run(s) in {wall:.1f} s"] if wall is not None else [])
+            [f"{len(res.summaries) or res.config.runs} run(s) in {wall:.1f} s"] if wall is not None else [])
         typer.echo(res.table + "\n\n" + "\n".join(lines))
     for name, why in res.failures.items():
         typer.echo(f"error: estimator {name!r} failed: {why}", err=True)

@@ -21,7 +21,8 @@ An experiment is a package ``workbench/experiments/<name>/`` with one module per
 ``run.py``         ``make_data(cfg, run)``: run k's dataset; ``run_once(cfg, run, estimators,
                    record, threads)``: that dataset and every estimator on it
                    (:func:`estimate_all`), a result with ``data``, ``estimates``,
-                   ``estimators``, ``failed``
+                   ``estimators``, ``failed``; optionally ``run_count(cfg)`` (runs a config
+                   makes, if not ``cfg.runs``) and ``grid_values`` (a sweep's values expanded)
 ``evaluate.py``    ``summarise(result, cfg, run)``: a run's errors and summary (picklable,
                    with ``run`` and ``failed``); ``statistics(cfg, summaries, label)``;
                    ``run_metrics(summary, cfg)`` and ``RUN_METRICS``: a run's figures (sweeps)
@@ -482,6 +483,21 @@ class Experiment:
     def dataset(self, cfg: Any, run: int) -> Any:
         """Run ``run``'s dataset, made or loaded, seeded by ``(cfg.seed, run)`` (``run.make_data``)."""
         return self.role("run").make_data(cfg, run)
+
+    def run_count(self, cfg: Any) -> int:
+        """How many runs a config makes: ``cfg.runs``, unless the package's ``run`` module says
+        otherwise (``run.run_count(cfg)``: sea's ``--mmsi all`` makes ``runs`` runs of each ship,
+        run k's dataset being the package's to map)."""
+        count = getattr(self.role("run"), "run_count", None)
+        return int(count(cfg)) if count is not None else int(cfg.runs)
+
+    def grid_values(self, name: str, values: tuple, scenario: str | None, fixed: Mapping[str, Any]
+                    ) -> tuple[tuple, list[str]]:
+        """A sweep's values of one setting as the experiment expands them (sea's ``mmsi=all``:
+        every usable ship), and lines to say about it (what was left out and why); the
+        package's ``run.grid_values`` if it has one, else the values as given."""
+        expand = getattr(self.role("run"), "grid_values", None)
+        return expand(name, values, scenario, fixed) if expand is not None else (values, [])
 
     def run_once(self, cfg: Any, run: int, estimators: list[Estimator], record: bool = False,
                  threads: int = 1) -> Any:

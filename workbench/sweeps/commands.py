@@ -75,6 +75,8 @@ def sweep(
         typer.echo(f"interrupted: {line}; the finished ones are kept in {res.out}; "
                    f"run the same command with --resume to finish", err=True)
         raise typer.Exit(INTERRUPTED)
+    for note in res.notes:
+        typer.echo(f"note: {note}", err=True)
     typer.echo((res.out / "summary.md").read_text())
     pngs = sum(p.suffix == ".png" for p in res.written)
     others = [p.name for p in res.written if p.suffix != ".png"]

@@ -43,6 +43,7 @@ class SweepResult:
     interrupted: bool = False
     executor: str = ""
     written: list[Path] = field(default_factory=list)
+    notes: list[str] = field(default_factory=list)  # what the experiment said expanding the grid (ships left out)
 
 
 @contextmanager
@@ -116,7 +117,11 @@ def plan(experiment: str, scenario: str | None, grid: Mapping[str, tuple], fixed
     for c, cell in enumerate(grids.cells(grid)):
         params = tuple(cell.items())
         probe = Task(experiment, scenario, c, params, tuple(fixed.items()), 0, runs, seed, refs)
-        probe.config()  # validates the cell (a one-line error names the bad value)
+        cfg = probe.config()  # validates the cell (a one-line error names the bad value)
+        if exp.run_count(cfg) != cfg.runs:
+            raise WorkbenchError(f"{experiment}: these settings make {exp.run_count(cfg)} runs of each cell's "
+                                 f"{cfg.runs} (several cases per run); a sweep counts its runs itself: sweep the "
+                                 "cases as a grid (e.g. --grid mmsi=all)")
         for start in range(0, runs, chunk):
             tasks.append(Task(experiment, scenario, c, params, tuple(fixed.items()), start, min(runs, start + chunk),
                               seed, refs, __version__, commit, preset))
@@ -177,6 +182,10 @@ def sweep(experiment: str, scenario: str | None = None, grid: Mapping[str, tuple
           progress: Callable[[int, int], None] | None = None, report: bool = True) -> SweepResult:
     """Run every cell x chunk of runs not yet on disk; write the report when all are."""
     grid, fixed = dict(grid or {}), dict(fixed or {})
+    exp, notes = get(experiment), []
+    for key, values in list(grid.items()):  # the experiment's own expansions (sea: mmsi=all -> every usable ship)
+        grid[key], said = exp.grid_values(key, tuple(values), scenario, fixed)
+        notes += said
     n_cells = len(grids.cells(grid))
     progress = progress or (lambda done, total: None)
     t0 = time.perf_counter()
@@ -187,7 +196,7 @@ def sweep(experiment: str, scenario: str | None = None, grid: Mapping[str, tuple
                                         preset), resume, force)
         done = {p.name for p in (folder / TASKS).glob("*.parquet")}
         todo = [t for t in tasks if t.file not in done]
-        result = SweepResult(folder, len(tasks), len(tasks) - len(todo), executor=where)
+        result = SweepResult(folder, len(tasks), len(tasks) - len(todo), executor=where, notes=notes)
         progress(result.done_before, len(tasks))
         futures = {pool.submit(run_task, t): t for t in todo}
         try:

@@ -17,6 +17,8 @@ SCENARIOS: dict[str, Scenario] = {s.name: s for s in (
              {"height": 20.0, "duration": 180.0, "sigma_acc": 0.3}, real_data=True),
 )}
 REGRESSORS = ("measured", "filtered")
+OBSERVERS = ("mast", "uav")
+ALL_SHIPS = "all"
 
 
 @dataclass
@@ -58,9 +60,13 @@ class SeaConfig:
     ekf_gate: float = 0.0
     robust: bool = False
     prior_speed: float = 10.0
-    mmsi: int | None = None
+    mmsi: int | str | None = None     # a ship, "all" (every usable ship in turn), None: the most manoeuvring
     data: Path | None = None
     ais_range: float = 1000.0
+    ais_max_gap: float = 200.0        # the longest silence between a ship's reports inside a run, s
+    observer: str = "mast"            # ais: "mast" (stationary) | "uav" (the real UAV flight, see sea.uav)
+    uav_data: Path | None = None
+    uav_start: float = 0.0            # where in the UAV flight the run starts, s
     estimators: tuple[str, ...] = ()  # () = the experiment's defaults
     # the image stage (``--from-images``): frames rendered from the truth, angles detected
     from_images: bool = False
@@ -106,6 +112,13 @@ class SeaConfig:
         require(0.0 <= self.ekf_gate < 1.0, f"--ekf-gate must be in [0, 1), got {self.ekf_gate}")
         require(self.prior_speed > 0, "--prior-speed must be positive")
         require(self.ais_range > 0, "--ais-range must be positive")
+        require(self.ais_max_gap > 0, "--ais-max-gap must be positive")
+        require(self.mmsi is None or self.mmsi == ALL_SHIPS or (isinstance(self.mmsi, int) and self.mmsi >= 0),
+                f"--mmsi must be a ship's number or {ALL_SHIPS!r}, got {self.mmsi!r}")
+        require(self.mmsi is None or self.scenario == "ais", "--mmsi needs --scenario ais")
+        require(self.observer in OBSERVERS, f"--observer must be one of {', '.join(OBSERVERS)}, got {self.observer!r}")
+        require(self.observer == "mast" or self.scenario == "ais", "--observer uav needs --scenario ais")
+        require(self.uav_start >= 0, f"--uav-start must not be negative, got {self.uav_start}")
         require(self.steps > params + 1, "the run is too short for the AR models")
         w, h = self.image_size
         require(160 <= w <= 7680 and 90 <= h <= 4320,
@@ -121,6 +134,7 @@ class SeaConfig:
     def to_json(self) -> dict:
         d = asdict(self)
         d["data"] = str(self.data) if self.data is not None else None
+        d["uav_data"] = str(self.uav_data) if self.uav_data is not None else None
         d["estimators"] = list(self.estimators)
         d["image_size"] = list(self.image_size)
         return d
@@ -128,6 +142,17 @@ class SeaConfig:
 
 def _flag(name: str) -> str:
     return name.replace("_", "-")
+
+
+def _mmsi(text: str) -> int | str:
+    """``--mmsi``: a ship's number, or ``all``."""
+    text = str(text).strip()
+    if text.lower() == ALL_SHIPS:
+        return ALL_SHIPS
+    try:
+        return int(text)
+    except ValueError:
+        raise ValueError(f"a ship's number or {ALL_SHIPS!r}, got {text!r}") from None
 
 
 def _size(text: str) -> tuple[int, int]:
@@ -152,9 +177,14 @@ OPTIONS: tuple[Option, ...] = (
     Option("dt", "Time step, s."),
     Option("ekf_gate", "EKF chi-square gate probability (0 = off)."),
     Option("robust", "Huber noise model in the GTSAM factors.", bool, switch="--robust/--no-robust"),
-    Option("mmsi", "ais: the ship [default: the most manoeuvring one].", int),
+    Option("mmsi", "ais: the ship, or 'all' (every ship with a long enough track, a row each) "
+                   "[default: the most manoeuvring one].", str, parse=_mmsi),
     Option("data", "ais: the AIS CSV [default: <data root>/ais/...].", Path),
     Option("ais_range", "ais: camera stand-off from the track, m."),
+    Option("ais_max_gap", "ais: the longest gap between a ship's reports inside a run, s."),
+    Option("observer", "ais: the camera's platform: mast (stationary) | uav (the real UAV flight).", str),
+    Option("uav_data", "ais, --observer uav: the UAV log [default: <data root>/ais/UAV_Rot.csv].", Path),
+    Option("uav_start", "ais, --observer uav: where in the flight the run starts, s."),
     Option("from_images", "Render camera frames and take the angles from them.", bool,
            switch="--from-images/--from-angles"),
     Option("image_size", "Frame size WIDTHxHEIGHT (70 deg wide).", str, parse=_size),

@@ -16,7 +16,7 @@ import numpy as np
 from workbench.estimation import metrics
 from workbench.estimation.angles import to_arcmin, wrap
 from workbench.experiments.sea import bounds as sea_bounds
-from workbench.experiments.sea.config import SeaConfig
+from workbench.experiments.sea.config import ALL_SHIPS, SeaConfig
 from workbench.experiments.sea.estimate import Estimate
 from workbench.experiments.sea.paper import TABLE2
 from workbench.experiments.sea.run import RunResult, run_once
@@ -54,6 +54,9 @@ class RunSummary:
     failed: dict[str, str] = field(default_factory=dict)  # estimators that failed: one line each
     delays: dict[str, float] = field(default_factory=dict)  # each estimator's delay (its bound)
     bounds: dict[float, dict[str, np.ndarray]] = field(default_factory=dict)  # delay -> quantity -> (T,)
+    ship: int | None = None                         # ais: the ship's MMSI
+    label: str = ""                                 # the dataset's label
+    repairs: dict = field(default_factory=dict)     # what reading the real files repaired
 
 
 def summarise(result: RunResult, cfg: SeaConfig, run: int) -> RunSummary:
@@ -99,7 +102,8 @@ def summarise(result: RunResult, cfg: SeaConfig, run: int) -> RunSummary:
         crb = {d: {q: v[0] for q, v in b.variances(d).items()} for d in {0.0, float("inf"), *delays.values()}}
     return RunSummary(run, errs, nees, fc, unusable,
                       {n: e.seconds for n, e in result.estimates.items()}, seen, data.t,
-                      transient, simulated, image, dict(result.failed), delays, crb)
+                      transient, simulated, image, dict(result.failed), delays, crb, data.ship, data.label,
+                      dict(data.repairs or {}))
 
 
 def bound_variances(runs: list[RunSummary], delay: float) -> dict[str, np.ndarray] | None:
@@ -221,12 +225,54 @@ def statistics(cfg: SeaConfig, runs: list[RunSummary], label: str = "") -> dict:
         result["estimators"][name] = entry
     if runs[0].image is not None:
         result["images"] = image_statistics(runs)
+    if runs[0].repairs:
+        result["data_repairs"] = dict(runs[0].repairs)
+    if cfg.scenario == "ais" and cfg.mmsi == ALL_SHIPS:
+        result.update(ship_statistics(cfg, runs))
     if runs[0].simulated is not None:
         sim = [replace(r, errors=r.simulated, nees={}, forecast_err={}, forecast_unusable={}, transient={},
                        simulated=None, image=None, failed={}, bounds={}) for r in runs]
         result["simulated"] = {"note": "the same runs' estimators on the simulated angles",
                                "estimators": statistics(cfg, sim, label)["estimators"]}
     return result
+
+
+SHIP_FIGURES = (("position_rmse", None), ("rmse", "x"), ("rmse", "y"), ("rmse", "alpha"), ("rmse", "beta"))
+"""The per-ship figures summarised over ships: position RMSE and the RMSE of x, y (m), alpha, beta (arcmin)."""
+
+
+def ship_statistics(cfg: SeaConfig, runs: list[RunSummary]) -> dict:
+    """``--mmsi all``: each ship's statistics over its own runs (as ``--mmsi <ship>`` gives them),
+    the median and the worst ship per estimator and figure, and the ships left out with the reason.
+
+    Returns ``ships`` (MMSI -> label, runs, per estimator position_rmse and Table 2's rmse and
+    bias), ``over_ships`` (estimator -> figure -> median, worst, worst_mmsi, mean), ``ships_skipped``
+    (MMSI -> reason) and a ``label``.
+    """
+    from workbench.experiments.sea import ais
+
+    groups: dict[int, list[RunSummary]] = {}
+    for r in runs:
+        groups.setdefault(int(r.ship), []).append(r)
+    ships = {}
+    for mmsi, rs in groups.items():
+        st = statistics(replace(cfg, mmsi=mmsi), rs, rs[0].label)
+        ships[str(mmsi)] = {"label": rs[0].label, "runs": len(rs), "estimators": {
+            name: {"position_rmse": e["position_rmse"], "rmse": e["rmse"], "bias": e["bias"]}
+            for name, e in st["estimators"].items()}}
+    over: dict = {}
+    for name in runs[0].errors:
+        over[name] = {}
+        for key, q in SHIP_FIGURES:
+            values = np.array([s["estimators"][name][key] if q is None else s["estimators"][name][key][q]
+                               for s in ships.values()])
+            worst = int(np.nanargmax(values)) if np.isfinite(values).any() else 0
+            over[name][key if q is None else f"rmse_{q}"] = {
+                "median": float(np.nanmedian(values)), "worst": float(values[worst]),
+                "worst_mmsi": int(list(ships)[worst]), "mean": float(np.nanmean(values))}
+    _, skipped = ais.ship_set(cfg.data, cfg.duration, cfg.ais_max_gap)
+    return {"ships": ships, "over_ships": over, "ships_skipped": {str(m): why for m, why in skipped.items()},
+            "label": f"every usable ship: {len(ships)} run, {len(skipped)} skipped"}
 
 
 def image_statistics(runs: list[RunSummary]) -> dict:

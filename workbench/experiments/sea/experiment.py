@@ -29,6 +29,8 @@ class Sea(Experiment):
         Preset("ar-models", "algorithms 2-3's forgetting factor x window x AR order (Fig. 4-5)",
                {"lam": (0.95, 0.98, 1.0), "window": (60, 120, 240), "order": (3, 5, 8)},
                estimators="geometric,rls,window-rls,ekf"),
+        Preset("ships", "every AIS ship usable for the run's duration, a cell each (the others named with the "
+               "reason)", {"mmsi": ("all",)}, scenario="ais"),
         Preset("noise", "the camera's angle noises, half and twice Table 1's",
                {"sigma_alpha_arcmin": (0.44, 0.88, 1.76), "sigma_beta_arcmin": (0.78, 1.56, 3.12)}),
     )

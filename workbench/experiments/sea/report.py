@@ -3,6 +3,8 @@ paper's rows beside ours, and the scenario's extra figures."""
 
 from __future__ import annotations
 
+import numpy as np
+
 from workbench.estimation import bounds
 from workbench.experiments.sea.paper import TABLE2
 
@@ -68,12 +70,47 @@ def table(stats: dict) -> str:
             f"v {im['rmse_px']['v']:.3f} px (bias {im['bias_px']['u']:.3f}, {im['bias_px']['v']:.3f}); "
             f"horizon rmse {_num(im['horizon']['rmse_px'])} px; detection {fps['detect']:.0f} frames/s "
             f"({fps['render_and_detect']:.0f} with rendering); no detection: {reasons}")
-    return "\n".join(lines + [""] + bounds.table(stats, (("position", "m"), ("range", "m"), ("alpha", "'"),
+    if stats.get("data_repairs"):
+        extra += ["", "Reading the data: " + ", ".join(f"{k.replace('_', ' ')} {v}"
+                                                       for k, v in stats["data_repairs"].items())]
+    body = "\n".join(lines + [""] + bounds.table(stats, (("position", "m"), ("range", "m"), ("alpha", "'"),
                                                           ("beta", "'"))) + extra)
+    if "ships" in stats:
+        return ships_table(stats) + "\n\nEvery ship's runs pooled:\n\n" + body
+    return body
+
+
+def ships_table(stats: dict) -> str:
+    """``--mmsi all``: a row per ship (each estimator's position RMSE, m, the mean over the ship's
+    runs), the median and the worst ship, and the ships skipped with the reason."""
+    ships, over, skipped = stats["ships"], stats["over_ships"], stats["ships_skipped"]
+    names = list(over)
+    per = next(iter(ships.values()))["runs"] if ships else 0
+    lines = [f"**sea / ais, every ship**: {len(ships)} ship(s) run ({per} run(s) each, seed {stats['seed']}), "
+             f"{len(skipped)} skipped; position RMSE, m", "",
+             "| MMSI | segment | " + " | ".join(names) + " |", "|" + "---|" * (len(names) + 2)]
+    for mmsi, s in ships.items():
+        segment = s["label"].split(", ", 1)[1] if ", " in s["label"] else s["label"]
+        lines.append(f"| {mmsi} | {segment} | "
+                     + " | ".join(_m(s["estimators"][n]["position_rmse"]) for n in names) + " |")
+    lines.append("| **median over ships** | | " + " | ".join(
+        _m(over[n]["position_rmse"]["median"]) for n in names) + " |")
+    lines.append("| **worst ship** | | " + " | ".join(
+        f"{_m(over[n]['position_rmse']['worst'])} ({over[n]['position_rmse']['worst_mmsi']})" for n in names) + " |")
+    if skipped:
+        lines += ["", f"Skipped ({len(skipped)}): " + "; ".join(f"{m} ({why})" for m, why in skipped.items())]
+    return "\n".join(lines)
 
 
 def _num(x: float | None) -> str:
     return "n/a" if x is None else f"{x:.3f}"
+
+
+def _m(x: float | None) -> str:
+    """Metres for the ships' table: 3 significant digits under 10, one decimal above."""
+    if x is None or not np.isfinite(x):
+        return "n/a"
+    return f"{x:.3g}" if abs(x) < 10 else f"{x:.1f}"
 
 
 def _forecast(f: dict) -> str:

@@ -12,8 +12,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from workbench.errors import require
 from workbench.experiments.contract import Estimator, RunContext, estimate_all
-from workbench.experiments.sea.config import SeaConfig
+from workbench.experiments.sea.config import ALL_SHIPS, SeaConfig
 from workbench.experiments.sea.estimate import Estimate, check
 from workbench.experiments.sea.scenario import SeaData, simulate
 
@@ -32,15 +33,60 @@ class RunResult:
 
 
 def make_data(cfg: SeaConfig, run: int) -> SeaData:
-    """The run's dataset, seeded by ``(seed, run)`` so runs are independent and repeatable."""
-    rng = np.random.default_rng([cfg.seed, run])
-    if cfg.scenario == "ais":
-        from workbench.experiments.sea import ais
+    """The run's dataset, seeded by ``(seed, run)`` so runs are independent and repeatable.
 
-        ship = ais.ship_scenario(cfg.data, cfg.mmsi, cfg.duration, cfg.dt, cfg.ais_range)
-        return simulate(cfg, rng, target=ship["target"], observer=ship["observer"],
-                        course=ship["course"], label=ship["label"])
-    return simulate(cfg, rng)
+    With ``--mmsi all`` run k is run ``k % runs`` of ship ``k // runs`` (the usable ships by
+    MMSI, :func:`.ais.ship_set`), seeded by ``(seed, k % runs)``: each ship's runs are the very
+    runs ``--mmsi <that ship>`` makes.
+    """
+    if cfg.scenario != "ais":
+        return simulate(cfg, np.random.default_rng([cfg.seed, run]))
+    from workbench.experiments.sea import ais
+
+    mmsi, k = cfg.mmsi, run
+    if cfg.mmsi == ALL_SHIPS:
+        ships = _ships(cfg)
+        mmsi, k = ships[run // cfg.runs], run % cfg.runs
+    ship = ais.ship_scenario(cfg.data, mmsi, cfg.duration, cfg.dt, cfg.ais_range, cfg.ais_max_gap, cfg.observer,
+                             cfg.uav_data, cfg.uav_start)
+    data = simulate(cfg, np.random.default_rng([cfg.seed, k]), target=ship["target"], observer=ship["observer"],
+                    course=ship["course"], label=ship["label"])
+    data.ship, data.repairs = ship["mmsi"], dict(ship["repairs"])
+    return data
+
+
+def _ships(cfg: SeaConfig) -> list[int]:
+    """The ships ``--mmsi all`` runs; none is a one-line error naming why each was left out."""
+    from workbench.experiments.sea import ais
+
+    ships, skipped = ais.ship_set(cfg.data, cfg.duration, cfg.ais_max_gap)
+    require(bool(ships), f"no ship in the AIS file can be run for {cfg.duration:g} s "
+                         f"({len(skipped)} skipped, e.g. {next(iter(skipped.items()), ('-', '-'))[1]})")
+    return ships
+
+
+def run_count(cfg: SeaConfig) -> int:
+    """``runs``, or ``runs`` per usable ship with ``--mmsi all``."""
+    if cfg.scenario == "ais" and cfg.mmsi == ALL_SHIPS:
+        return len(_ships(cfg)) * cfg.runs
+    return cfg.runs
+
+
+def grid_values(name: str, values: tuple, scenario: str | None, fixed: dict) -> tuple[tuple, list[str]]:
+    """A sweep's ``mmsi=all`` becomes every usable ship (a cell each); the lines name the ships
+    left out and why."""
+    if name != "mmsi" or ALL_SHIPS not in values:
+        return values, []
+    from dataclasses import fields
+
+    from workbench.experiments.sea import ais
+
+    known = {f.name for f in fields(SeaConfig)}
+    cfg = SeaConfig(scenario=scenario or "paper", **{k: v for k, v in fixed.items() if k in known})
+    require(cfg.scenario == "ais", "--grid mmsi=all needs --scenario ais")
+    ships, skipped = ais.ship_set(cfg.data, cfg.duration, cfg.ais_max_gap)
+    out = tuple(dict.fromkeys([v for v in values if v != ALL_SHIPS] + ships))
+    return out, [f"ship {m} skipped: {why}" for m, why in skipped.items()]
 
 
 def run_once(cfg: SeaConfig, run: int, estimators: list[Estimator], record: bool = False,

@@ -39,6 +39,8 @@ class SeaData:
     dt: float
     label: str = ""
     impulse: np.ndarray | None = None  # (T, 2) the impulse noise added to alpha, beta (impulse scenario)
+    ship: int | None = None            # ais: the ship's MMSI
+    repairs: dict | None = None        # ais: what reading the real files repaired (ais.AisFile.repairs, uav)
 
     @property
     def steps(self) -> int:

@@ -1,0 +1,110 @@
+"""Reading a real CSV log that has the quirks real logs have (the AIS reports, the UAV's GPS log).
+
+What is repaired, counted in a ``repairs`` dict and said in one
+:class:`~workbench.errors.DataWarning` line each (the model is the MRCLAM loader,
+:mod:`workbench.experiments.omni.mrclam`):
+
+* a **last line cut short** (fewer fields than the header, or a field that is not a number: a
+  writer that stopped mid-line) is left out (``<what>_cut_last_line``);
+* rows stamped **out of time order** by up to ``max_backstep`` seconds are put back in order
+  (``<what>_reordered``: the rows that moved);
+* **repeated time stamps** (of one ship, for AIS) keep the last row of each repeat
+  (``<what>_repeated_stamps``: the rows dropped).
+
+What cannot be repaired stays a one-line :class:`~workbench.errors.WorkbenchError`: no header
+or no rows, a needed column missing (the message lists the header's), a bad field anywhere but
+the last line, time running back by more than ``max_backstep``.
+"""
+
+from __future__ import annotations
+
+import csv
+import warnings
+from collections.abc import Callable, Sequence
+from pathlib import Path
+
+import numpy as np
+
+from workbench.errors import DataWarning, WorkbenchError
+
+
+def say(path: Path, what: str) -> None:
+    """One warning line about a repair of ``path``."""
+    warnings.warn(DataWarning(f"{path.name}: {what}"), stacklevel=3)
+
+
+def count(repairs: dict[str, int], key: str, n: int) -> None:
+    if n:
+        repairs[key] = repairs.get(key, 0) + int(n)
+
+
+def read_rows(path: Path, columns: Sequence[str], parse: Callable[[dict[str, str]], tuple],
+              what: str, repairs: dict[str, int]) -> tuple[list[tuple], list[int]]:
+    """The parsed rows of a CSV file with a header, and each one's line number.
+
+    ``parse(record)`` turns a row (column -> text) into a tuple, raising ``ValueError`` /
+    ``TypeError`` for a bad field. A bad last line is left out and counted as cut short; a bad
+    line elsewhere is an error naming it.
+    """
+    try:
+        with open(path, newline="") as fh:
+            reader = csv.reader(fh)
+            header = next(reader, None)
+            if not header or not any(h.strip() for h in header):
+                raise WorkbenchError(f"malformed {what} file {path}: no header line")
+            header = [h.strip() for h in header]
+            missing = [c for c in columns if c not in header]
+            if missing:
+                raise WorkbenchError(f"malformed {what} file {path}: missing column(s) {', '.join(missing)} "
+                                     f"(its columns: {', '.join(header)[:120]})")
+            lines = [(reader.line_num, fields) for fields in reader if any(f.strip() for f in fields)]
+    except UnicodeDecodeError:
+        raise WorkbenchError(f"malformed {what} file {path}: not text") from None
+    except csv.Error as exc:
+        raise WorkbenchError(f"malformed {what} file {path}: {exc}") from None
+    if not lines:
+        raise WorkbenchError(f"malformed {what} file {path}: no rows after the header")
+    rows, numbers = [], []
+    for i, (number, fields) in enumerate(lines):
+        try:
+            if len(fields) < len(header):
+                raise ValueError(f"{len(fields)} field(s), the header has {len(header)}")
+            rows.append(parse(dict(zip(header, fields, strict=False))))
+            numbers.append(number)
+        except (TypeError, ValueError) as exc:
+            if i == len(lines) - 1 and i > 0:
+                count(repairs, f"{what}_cut_last_line", 1)
+                say(path, f"line {number} is cut short ({','.join(fields)[:40]!r}): left out")
+                break
+            raise WorkbenchError(f"malformed {what} file {path}, line {number}: {exc}") from None
+    return rows, numbers
+
+
+def in_order(path: Path, t: np.ndarray, numbers: Sequence[int], max_backstep: float, what: str,
+             repairs: dict[str, int]) -> np.ndarray:
+    """The permutation that puts rows in time order: rows stamped up to ``max_backstep`` s
+    behind the latest before them are put back (counted, said); further back is an error
+    naming the two lines."""
+    if not (np.diff(t) < 0).any():
+        return np.arange(len(t))
+    latest = np.maximum.accumulate(t)
+    behind = latest[:-1] - t[1:]
+    if behind.max() > max_backstep:
+        row = int(np.argmax(behind > max_backstep)) + 1
+        prev = int(np.flatnonzero(t[:row] == latest[row - 1])[-1])
+        raise WorkbenchError(f"{what} file {path}, line {numbers[row]}: time goes backwards by "
+                             f"{latest[row - 1] - t[row]:.1f} s from line {numbers[prev]} "
+                             f"(more than {max_backstep:g} s: not a row out of order)")
+    order = np.argsort(t, kind="stable")
+    moved = int(np.sum(order != np.arange(len(t))))
+    count(repairs, f"{what}_reordered", moved)
+    say(path, f"{moved} row(s) out of time order (by up to {behind.max():.1f} s): put back in order")
+    return order
+
+
+def last_of_repeats(keys: np.ndarray) -> np.ndarray:
+    """A mask keeping the last row of each run of equal ``keys`` (rows already sorted by them)."""
+    if len(keys) == 0:
+        return np.zeros(0, bool)
+    same = np.all(keys[1:] == keys[:-1], axis=-1) if keys.ndim > 1 else keys[1:] == keys[:-1]
+    return np.append(~same, True)
