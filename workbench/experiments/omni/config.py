@@ -22,8 +22,10 @@ IMAGE_SIGMA_BEARING_DEG = 0.3
 # Odometry noise as densities (steps vary from 0.01 to 1 s): 2 deg/s/sqrt(Hz) matches the
 # heading's random walk of ~2 deg/sqrt(s) over blind stretches. Landmarks wait for 15 deg
 # of parallax (the paper's UT gate almost never passes through a 66 deg window: its sigma
-# points fall behind a view), a candidate is kept 30 s, bearings are NIS-gated at 0.99,
-# and the graph takes a damped LM pass every 20 s (iSAM2's undamped steps run away here).
+# points fall behind a view), a candidate is kept 30 s, bearings are NIS-gated at 0.99 (the
+# EKF on its innovation, the graph against its last LM pass carried on with the odometry:
+# misread barcodes, robot 3 at 255 s), and the graph takes a damped LM pass every 20 s
+# (iSAM2's undamped steps run away here).
 SCENARIOS: dict[str, Scenario] = {s.name: s for s in (
     Scenario("paper", "the paper's 500 s simulation: 80 x 80 m room, 24 wall lines and 8 pillars, 3 m/s"),
     Scenario("mrclam", "the real robots of UTIAS MRCLAM dataset 6 (unicycle odometry, forward camera)",
