@@ -32,7 +32,7 @@ MODES = ("common", "ii-only")
 DISTRIBUTIONS = ("uniform", "gaussian", "maximum")
 HYPOTHESES = ("grid", "sample")
 BANKS = ("batch", "literal")
-RADIOMETRY = ("moments", "none")
+RADIOMETRY = ("local", "moments", "none")
 NGI_FRAMES = ("0182", "0184", "0251", "0253")
 MAX_PIXELS = 2_000_000
 
@@ -79,7 +79,7 @@ class TerrainConfig:
     samples: int = 50
     node_step: int = 1
     sigma_r: float = 0.05
-    radiometry: str = "moments"
+    radiometry: str = "local"
     bank: str = "batch"
     chunk_mb: float = 256.0
     # the GTSAM baseline
@@ -169,8 +169,8 @@ OPTIONS: tuple[Option, ...] = (
     Option("samples", "sample: the number of functionals N.", int),
     Option("node_step", "Node step delta on image I, pixels.", int),
     Option("sigma_r", "Irradiance noise sigma of the filters (R = sigma^2)."),
-    Option("radiometry", "Image II onto image I's irradiance scale: moments (affine, matched over the "
-           "overlap) | none (the paper's (2) as written).", str),
+    Option("radiometry", "Image II onto image I's irradiance scale: local (moments, then the slow "
+           "part of what still differs) | moments (affine, matched over the overlap) | none (the paper's (2)).", str),
     Option("bank", "Filter bank: batch (closed form, compiled) | literal (node by node).", str),
     Option("chunk_mb", "literal bank: memory budget of a chunk of hypotheses, MB."),
     Option("height", "synthetic: flight height over the mean terrain, m."),
