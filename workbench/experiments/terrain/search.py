@@ -25,7 +25,7 @@ Readings taken:
   the measured orientation; the same node set for every hypothesis, so functionals compare.
 * Radiometry: (2) compares irradiances as if both exposures recorded the same one; real
   frames do not, so image II is first put on image I's scale (``--radiometry``, default
-  ``local``; :mod:`.radiometry`, which gives the measurements). Without it, on ngi 0251/0253
+  ``local`` on the real frames; :mod:`.radiometry`, which gives the measurements). Without it, on ngi 0251/0253
   (common mode) the offset drove the refinement 60-110 m off in height.
 
 The batch form: with the linearisation fixed, the sequential filter's functional equals
@@ -139,13 +139,13 @@ def make_problem(cfg: TerrainConfig, k: Intrinsics, dem: Dem, position: np.ndarr
     nodes = np.stack([u[inside], v[inside]], axis=1)
     z = images[0][nodes[:, 1].astype(int), nodes[:, 0].astype(int)]
     image2 = np.asarray(images[1], float)
+    if cfg.radiometry == "local":
+        image2 = radiometry.flatten(image2)
+        z = radiometry.flatten(images[0])[nodes[:, 1].astype(int), nodes[:, 0].astype(int)]
     gain, offset = 1.0, 0.0
     if cfg.radiometry != "none":
-        f = bilinear(image2[..., None], uv[inside, 0], uv[inside, 1])[..., 0]
-        gain, offset = radiometry.match(z, f)
+        gain, offset = radiometry.match(z, bilinear(image2[..., None], uv[inside, 0], uv[inside, 1])[..., 0])
         image2 = gain * image2 + offset
-        if cfg.radiometry == "local":
-            z = z - radiometry.smooth_difference(nodes, z - (gain * f + offset), cfg.node_step, (k.width, k.height))
     hr, hc = np.gradient(local.heights)
     dem_stack = np.ascontiguousarray(np.stack([local.heights, hc, hr], axis=-1), dtype=float)
     return Problem(cfg.mode, k, local, origin, position, np.asarray(angles, float), m, nodes, z, t[inside],
