@@ -26,12 +26,13 @@ from workbench.experiments.contract import Option, Scenario, apply_scenario, by_
 SCENARIOS: dict[str, Scenario] = {s.name: s for s in (
     Scenario("synthetic", "a synthetic terrain and texture under a simulated pair (1500 m, 150 mm, 65 % overlap)"),
     Scenario("ngi", "two real NGI aerial frames (Intergraph DMC, ~5 km up) and their DEM",
-             {"size": "160x288"}, real_data=True),
+             {"size": "160x288", "radiometry": "local"}, real_data=True),
 )}
 MODES = ("common", "ii-only")
 DISTRIBUTIONS = ("uniform", "gaussian", "maximum")
 HYPOTHESES = ("grid", "sample")
 BANKS = ("batch", "literal")
+RADIOMETRY = ("local", "moments", "none")
 NGI_FRAMES = ("0182", "0184", "0251", "0253")
 MAX_PIXELS = 2_000_000
 
@@ -78,6 +79,7 @@ class TerrainConfig:
     samples: int = 50
     node_step: int = 1
     sigma_r: float = 0.05
+    radiometry: str = by_scenario("none")  # the real frames: "local" (radiometry.py says why)
     bank: str = "batch"
     chunk_mb: float = 256.0
     # the GTSAM baseline
@@ -114,6 +116,7 @@ class TerrainConfig:
                 f"unknown error distribution {self.distribution!r}; one of {', '.join(DISTRIBUTIONS)}")
         require(self.hypotheses in HYPOTHESES, f"--hypotheses must be one of {', '.join(HYPOTHESES)}")
         require(self.bank in BANKS, f"--bank must be one of {', '.join(BANKS)}")
+        require(self.radiometry in RADIOMETRY, f"--radiometry must be one of {', '.join(RADIOMETRY)}")
         require(self.runs >= 1, f"--runs must be at least 1 (got {self.runs})")
         for name in ("max_linear", "max_angular"):
             value = getattr(self, name)
@@ -166,6 +169,9 @@ OPTIONS: tuple[Option, ...] = (
     Option("samples", "sample: the number of functionals N.", int),
     Option("node_step", "Node step delta on image I, pixels.", int),
     Option("sigma_r", "Irradiance noise sigma of the filters (R = sigma^2)."),
+    Option("radiometry", "Image II onto image I's irradiance scale: local (each image's slow "
+           "brightness variation removed, then moments) | moments (affine, matched over the "
+           "overlap) | none (the paper's (2)).", str),
     Option("bank", "Filter bank: batch (closed form, compiled) | literal (node by node).", str),
     Option("chunk_mb", "literal bank: memory budget of a chunk of hypotheses, MB."),
     Option("height", "synthetic: flight height over the mean terrain, m."),

@@ -2,7 +2,8 @@
 known exterior orientation as the truth, and the real DEM (``data/ngi``, see its README).
 
 Readings: the orientation file ``camera_pos_ori.txt`` (x, y, z in the transverse Mercator
-frame, omega, phi, kappa in degrees) follows orthority's convention: ``R = Rx(omega) Ry(phi)
+frame, omega, phi, kappa in degrees; checked against ``ngi_xyz_opk.csv``, both read strictly by
+:mod:`.ngi_orientation`) follows orthority's convention: ``R = Rx(omega) Ry(phi)
 Rz(kappa)`` maps a PATB camera (x right, y up, z back) to the world, so the OpenCV camera's
 ``R_wc = R diag(1, -1, -1)``; it is turned into this package's (psi, theta, gamma). The frames
 are read as grey (mean of RGB) and shrunk to ``--size`` (same aspect as 640 x 1152, no larger);
@@ -17,8 +18,8 @@ from pathlib import Path
 
 import numpy as np
 
-from workbench.errors import DataNotFound, WorkbenchError, require
-from workbench.experiments.terrain import camera
+from workbench.errors import DataNotFound, require
+from workbench.experiments.terrain import camera, ngi_orientation
 from workbench.experiments.terrain.camera import Intrinsics
 from workbench.experiments.terrain.config import SCENARIOS, TerrainConfig
 from workbench.experiments.terrain.dem import read_geotiff
@@ -51,21 +52,13 @@ def opk_rotation(omega: float, phi: float, kappa: float) -> np.ndarray:
 
 
 def read_orientation(path: Path) -> dict[str, tuple[np.ndarray, np.ndarray]]:
-    """Frame id -> (position (3,), R_wc (3, 3)) from ``camera_pos_ori.txt``."""
-    require(path.is_file(), f"orientation file not found: {path}")
-    out = {}
-    for n, line in enumerate(path.read_text().splitlines(), 1):
-        parts = line.split()
-        if not parts:
-            continue
-        try:
-            name, values = parts[0], [float(x) for x in parts[1:7]]
-        except ValueError:
-            raise WorkbenchError(f"{path.name} line {n}: not 'name x y z omega phi kappa'") from None
-        require(len(values) == 6, f"{path.name} line {n}: expected 6 numbers after the name")
-        out[name.removeprefix(PREFIX).removesuffix("_RGB")[-4:]] = (
-            np.array(values[:3]), opk_rotation(*np.radians(values[3:])))
-    return out
+    """Frame id -> (position (3,), R_wc (3, 3)) from ``camera_pos_ori.txt`` or ``ngi_xyz_opk.csv``
+    (read strictly: :mod:`.ngi_orientation`)."""
+    return {f: _pose(v) for f, v in ngi_orientation.read(path).items()}
+
+
+def _pose(values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    return np.array(values[:3]), opk_rotation(*np.radians(values[3:]))
 
 
 def _frame(path: Path, size: tuple[int, int]) -> np.ndarray:
@@ -96,9 +89,7 @@ def load(cfg: TerrainConfig) -> Scene:
     root = folder(cfg)
     w, h = cfg.image_size
     check_size((w, h))
-    orient = read_orientation(root / "camera_pos_ori.txt")
-    for f in cfg.pair:
-        require(f in orient, f"the orientation file has no frame {f}")
+    orient = {f: _pose(v) for f, v in ngi_orientation.orientation(root, tuple(cfg.pair)).items()}
     dem = read_geotiff(root / "dem.tif")
     fx = FOCAL_MM * w / SENSOR_MM[0]
     fy = FOCAL_MM * h / SENSOR_MM[1]
