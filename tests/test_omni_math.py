@@ -373,3 +373,19 @@ def test_the_gate_keeps_misread_barcodes_out_of_the_graph():
     assert np.max(np.hypot(*(gated.pose[:, :2] - clean.pose[:, :2]).T)) < 0.01
     assert gated.gated >= clean.gated + 4 - 1  # the four misreads (one may have been gated anyway)
     assert clean.gated < 0.03 * len(data.meas_lm)
+
+
+def test_consensus_places_a_landmark_by_its_agreeing_rays():
+    """Twelve rays to a landmark at (5, 5) from poses along the x axis, three of them turned
+    round (180 deg, as held rays from a pose the odometry got wrong look): the point is the
+    landmark's, the three are named; two rays alone never place it."""
+    landmark = np.array([5.0, 5.0])
+    poses = np.stack([np.linspace(0.0, 4.0, 12), np.zeros(12), np.full(12, 0.3)], axis=1)
+    bearings = np.arctan2(landmark[1] - poses[:, 1], landmark[0] - poses[:, 0]) - poses[:, 2]
+    bad = np.zeros(12, bool)
+    bad[[3, 7, 11]] = True  # the newest among them
+    turned = wrap(bearings + np.where(bad, math.pi, 0.0))
+    point, agree = graph.consensus(poses, turned, math.radians(3.0), math.radians(5.0))
+    assert np.allclose(point, landmark, atol=1e-6)
+    assert np.array_equal(agree, ~bad)
+    assert graph.consensus(poses[:2], bearings[:2], math.radians(3.0), math.radians(1.0)) is None

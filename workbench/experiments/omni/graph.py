@@ -111,23 +111,39 @@ class _Landmarks:
     def __init__(self, n: int, sigma: float, min_parallax: float, huber: float = 0.0):
         self.obs: list[list[tuple[int, float]]] = [[] for _ in range(n)]
         self.inserted = np.zeros(n, bool)
+        self.outliers: list[tuple[int, int]] = []
         self.noise = bearing_noise(sigma, huber)
         self.min_parallax = min_parallax
 
     def factor(self, kf: int, lm: int, bearing: float) -> gtsam.BearingFactor2D:
         return gtsam.BearingFactor2D(X(kf), L(lm), gtsam.Rot2.fromAngle(bearing), self.noise)
 
-    def observe(self, e: int, lm: int, bearing: float, pose_of, preset: np.ndarray | None = None
-                ) -> tuple[list[gtsam.BearingFactor2D], np.ndarray | None]:
+    def observe(self, e: int, lm: int, bearing: float, pose_of, preset: np.ndarray | None = None,
+                tolerance: float = math.inf) -> tuple[list[gtsam.BearingFactor2D], np.ndarray | None]:
         """Take bearing ``bearing`` of ``lm`` at keyframe ``e``. Returns the factors to add now
         (this one if ``lm`` is in the graph; every held one if it enters now) and, if it enters
-        now, its starting point (``preset`` where given, else :meth:`try_insert`)."""
+        now, its starting point (``preset`` where given, else :meth:`try_insert`). With a finite
+        ``tolerance`` (rad), once the first and the newest ray meet with parallax, the held rays
+        are checked against each other (:func:`consensus`): those that disagree are left out,
+        listed in ``self.outliers`` as ``(keyframe, lm)``."""
         if self.inserted[lm]:
             return [self.factor(e, lm, bearing)], None
         self.obs[lm].append((e, bearing))
         if len(self.obs[lm]) < 2:
             return [], None
-        point = preset if preset is not None else self.try_insert(lm, pose_of)
+        if preset is None and math.isfinite(tolerance) and len(self.obs[lm]) >= 3:
+            (first, b_first), (newest, b_newest) = self.obs[lm][0], self.obs[lm][-1]
+            if _parallax_ok(pose_of(first), b_first, pose_of(newest), b_newest, self.min_parallax) is None:
+                return [], None  # not yet: the first and the newest ray decide when, as without the check
+            poses = np.array([pose_of(k) for k, _ in self.obs[lm]])
+            found = consensus(poses, np.array([b for _, b in self.obs[lm]]), tolerance, self.min_parallax)
+            if found is None:
+                return [], None
+            point, inlier = found
+            self.outliers.extend((k, lm) for (k, _), ok in zip(self.obs[lm], inlier, strict=True) if not ok)
+            self.obs[lm] = [o for o, ok in zip(self.obs[lm], inlier, strict=True) if ok]
+        else:
+            point = preset if preset is not None else self.try_insert(lm, pose_of)
         if point is None:
             return [], None
         self.inserted[lm] = True
@@ -143,6 +159,51 @@ class _Landmarks:
             return point
         poses = np.array([pose_of(k) for k, _ in self.obs[lm]])
         return refine(point, poses, np.array([b for _, b in self.obs[lm]]))
+
+
+def consensus(poses: np.ndarray, bearings: np.ndarray, tolerance: float, min_parallax: float,
+              samples: int = 12) -> tuple[np.ndarray, np.ndarray] | None:
+    """A landmark's starting point agreed by most of its held rays, and which rays agree.
+
+    Candidates are the meeting points of pairs among ``samples`` rays spread over the held ones
+    (the first and the newest always among them) that meet in front of both with
+    ``min_parallax``; a ray agrees with a candidate when its bearing is within ``tolerance``
+    of it. The candidate with the most agreeing rays (then the smallest squared residual) is
+    refined on those (:func:`refine`). None while no pair qualifies or fewer than three rays
+    agree (so a pair of rays alone never places a landmark against the rest).
+
+    Why: the rays held until a landmark has parallax can span minutes; one taken from a pose
+    the odometry got wrong (MRCLAM robot 5 at 600 s, heading 20-36 deg off) met the first
+    sighting's 5 m from the landmark, behind the views of a hundred rays held between them
+    (their residuals 180 deg); the graph took all of them and LM stalled at 2800 times the
+    cost it reaches from the truth (measured).
+    """
+    k = len(poses)
+    pick = np.unique(np.linspace(0, k - 1, min(k, samples)).round().astype(int))
+    best: tuple[int, float, np.ndarray] | None = None
+    for a in range(len(pick)):
+        for b in range(a + 1, len(pick)):
+            i, j = pick[a], pick[b]
+            point = _parallax_ok(poses[i], bearings[i], poses[j], bearings[j], min_parallax)
+            if point is None:
+                continue
+            r = np.abs(_residuals(point, poses, bearings))
+            agree = r < tolerance
+            score = (int(agree.sum()), -float(np.sum(r[agree] ** 2)))
+            if best is None or score > best[:2]:
+                best = (*score, point)
+    if best is None or best[0] < 3:
+        return None
+    point = best[2]
+    agree = np.abs(_residuals(point, poses, bearings)) < tolerance
+    point = refine(point, poses[agree], bearings[agree])
+    agree = np.abs(_residuals(point, poses, bearings)) < tolerance
+    return (point, agree) if agree.sum() >= 3 else None
+
+
+def _residuals(point: np.ndarray, poses: np.ndarray, bearings: np.ndarray) -> np.ndarray:
+    d = point[None, :] - poses[:, :2]
+    return wrap(bearings - (np.arctan2(d[:, 1], d[:, 0]) - poses[:, 2]))
 
 
 def refine(point: np.ndarray, poses: np.ndarray, bearings: np.ndarray, iterations: int = 10) -> np.ndarray:
@@ -311,13 +372,15 @@ class _Incremental:
             if marks.inserted[lm] and not self._consistent(lm, b):
                 self.rejected.add((e, lm))
                 continue
-            factors, point = marks.observe(e, lm, b, self.known.__getitem__)
+            factors, point = marks.observe(e, lm, b, self.known.__getitem__, tolerance=self._tolerance())
             for factor in factors:
                 sights.add(factor)
             if point is not None:
                 points.insert(L(lm), point)
                 self.points[lm] = point
                 entered.append(lm)
+        self.rejected.update(marks.outliers)
+        marks.outliers.clear()
         graph = gtsam.NonlinearFactorGraph(motion)
         graph.push_back(sights)
         values = gtsam.Values(pose_value)
@@ -363,6 +426,14 @@ class _Incremental:
         return self.known[e]
 
     runaways = 0
+
+    def _tolerance(self) -> float:
+        """How far (rad) a held ray may be from a landmark's starting point (:func:`consensus`):
+        the gate's number of sigmas of the bearing noise and the current heading's uncertainty
+        (the held rays' poses, corrected by LM passes since, are no less certain)."""
+        if not math.isfinite(self.gate):
+            return math.inf
+        return math.sqrt(self.gate * (self.data.sigma_bearing ** 2 + self.chain_cov[2, 2]))
 
     def _consistent(self, lm: int, bearing: float) -> bool:
         """The chi-square gate on a bearing of a landmark in the graph (``nis_gate``, the same
