@@ -86,17 +86,10 @@ def load(path: Path | None) -> dict[int, ShipTrack]:
     return read(path).tracks
 
 
-def _finite(text: str) -> float:
-    v = float(text)
-    if not np.isfinite(v):
-        raise ValueError(f"non-finite value {text!r}")
-    return v
-
-
 def _parse(rec: dict[str, str]) -> tuple:
     return (datetime.fromisoformat(rec["Time"].strip()).timestamp(), int(rec["MMSI"]),
-            _finite(rec["Latitude_degrees"]), _finite(rec["Longitude_degrees"]),
-            _finite(rec["COG_degrees"]), _finite(rec["SOG_knots"]))
+            csvfile.finite(rec["Latitude_degrees"]), csvfile.finite(rec["Longitude_degrees"]),
+            csvfile.finite(rec["COG_degrees"]), csvfile.finite(rec["SOG_knots"]))
 
 
 @functools.lru_cache(maxsize=4)

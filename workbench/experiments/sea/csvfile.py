@@ -28,6 +28,14 @@ import numpy as np
 from workbench.errors import DataWarning, WorkbenchError
 
 
+def finite(text: str) -> float:
+    """A field as a finite number (a ValueError otherwise, which :func:`read_rows` reports)."""
+    v = float(text)
+    if not np.isfinite(v):
+        raise ValueError(f"non-finite value {text!r}")
+    return v
+
+
 def say(path: Path, what: str) -> None:
     """One warning line about a repair of ``path``."""
     warnings.warn(DataWarning(f"{path.name}: {what}"), stacklevel=3)

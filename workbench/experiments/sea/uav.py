@@ -73,16 +73,9 @@ def read(path: Path | None) -> UavLog:
     return _read(*stamp(data_file(path, DEFAULT_FILE)))
 
 
-def _finite(text: str) -> float:
-    v = float(text)
-    if not np.isfinite(v):
-        raise ValueError(f"non-finite value {text!r}")
-    return v
-
-
 def _parse(rec: dict[str, str]) -> tuple:
-    return (datetime.fromisoformat(rec["time"].strip()).timestamp(), _finite(rec["latitude"]),
-            _finite(rec["longitude"]), _finite(rec["altitude (m)"]))
+    return (datetime.fromisoformat(rec["time"].strip()).timestamp(), csvfile.finite(rec["latitude"]),
+            csvfile.finite(rec["longitude"]), csvfile.finite(rec["altitude (m)"]))
 
 
 @functools.lru_cache(maxsize=4)
