@@ -26,6 +26,8 @@ class Omni(Experiment):
         Demo("omni-paper", "paper", max_runs=4, estimators="+fixed-lag"),
         Demo("omni-mrclam1", "mrclam", {"robot": 1}, max_runs=1),
         Demo("omni-mrclam2", "mrclam", {"robot": 2}, max_runs=1),
+        # robot 3 misreads four barcodes at 255 s: the gated bearings drawn red in each map
+        Demo("omni-mrclam3", "mrclam", {"robot": 3}, max_runs=1),
     )
     presets = (
         Preset("initialisation", "the skewness gate x the bearing noise x the bearing rate (the UT-gated "
