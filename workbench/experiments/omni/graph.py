@@ -218,14 +218,13 @@ def refine(point: np.ndarray, poses: np.ndarray, bearings: np.ndarray, iteration
     run away (metres of pose error, then a landmark at 1e97 m).
     """
     def cost(x: np.ndarray) -> float:
-        d = x[None, :] - poses[:, :2]
-        return float(np.sum(wrap(bearings - (np.arctan2(d[:, 1], d[:, 0]) - poses[:, 2]))**2))
+        return float(np.sum(_residuals(x, poses, bearings) ** 2))
 
     x, c = point.astype(float).copy(), cost(point)
     for _ in range(iterations):
         d = x[None, :] - poses[:, :2]
         q = np.einsum("ki,ki->k", d, d)
-        r = wrap(bearings - (np.arctan2(d[:, 1], d[:, 0]) - poses[:, 2]))
+        r = _residuals(x, poses, bearings)
         J = np.stack([-d[:, 1] / q, d[:, 0] / q], axis=1)
         try:
             dx = np.linalg.solve(J.T @ J, J.T @ r)
