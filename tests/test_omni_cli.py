@@ -42,6 +42,15 @@ def test_recording_has_every_estimator(recorded):
         assert rows[f"/map/{name}/pending"] > 0
         assert rows[f"/sigma/position/{name}"] == G and rows[f"/nees/{name}"] >= G - 5  # P singular at first
     assert rows["/map/isam2/landmarks"] > 10 and rows["/map/gtsam-batch/landmarks"] == 1
+    # iSAM2's whole trajectory as held at the end: one static strip through every grid step, on
+    # the batch smoother's path (within 2 cm)
+    strips = readback.static_values(out, "/map/isam2/smoothed", "LineStrips3D:strips")
+    smoothed = np.array(strips[0])[:, :2]
+    batch = np.array(readback.static_values(out, "/map/gtsam-batch/path", "LineStrips3D:strips")[0])[:, :2]
+    assert len(strips) == 1 and smoothed.shape == (G, 2)
+    assert np.max(np.hypot(*(smoothed - batch).T)) < 0.02
+    with pytest.raises(KeyError):
+        readback.static_values(out, "/map/ekf/smoothed", "LineStrips3D:strips")
     props = readback.properties(out)
     assert props["experiment"] == "omni" and int(props["seed"]) == 5
     assert json.loads(props["config"])["runs"] == 2
@@ -55,6 +64,11 @@ def test_metrics_file_shape(recorded):
         assert set(e["rmse"]) == {"position", "heading", "map"} and e["max"]["position"] >= e["rmse"]["position"]
         assert "anees" in e and e["seconds"] > 0
     assert stats["estimators"]["odometry"]["rmse"]["map"] is None
+    # iSAM2 is a smoother: its trajectory at the end is the batch's; what it knew at each step is worse
+    smoothed, bat = stats["estimators"]["isam2"]["rmse_smoothed_whole_run"], stats["estimators"]["gtsam-batch"]
+    assert abs(smoothed["position"] - bat["rmse_whole_run"]["position"]) < 0.02
+    assert smoothed["position"] < stats["estimators"]["isam2"]["rmse_whole_run"]["position"]
+    assert "rmse_smoothed" not in stats["estimators"]["ekf"]
     assert stats["estimators"]["ekf"]["landmarks_initialised"] >= 15  # of 32, in 40 s
 
 

@@ -188,6 +188,12 @@ def test_isam2_ends_where_the_batch_smoother_ends():
     assert np.allclose(inc.final_map, bat.final_map, atol=0.02, equal_nan=True)
     assert np.linalg.norm(inc.pose[-1, :2] - bat.pose[-1, :2]) < 0.02
     assert np.allclose(np.diag(inc.cov[-1]), np.diag(bat.cov[-1]), rtol=0.1)
+    # its whole trajectory as held at the end is the batch's, everywhere, not only at the last pose;
+    # what it knew at each step (the causal path) is further from the truth than that
+    assert np.max(np.hypot(*(inc.smoothed[:, :2] - bat.pose[:, :2]).T)) < 0.02
+    err = {k: np.sqrt(np.mean(np.sum((p[:, :2] - data.truth[kf.steps, :2]) ** 2, axis=1)))
+           for k, p in (("causal", inc.pose), ("smoothed", inc.smoothed))}
+    assert err["smoothed"] < err["causal"]
 
 
 def test_clone_augmentation_keeps_the_covariance_positive_definite(monkeypatch):

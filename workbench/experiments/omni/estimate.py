@@ -27,7 +27,8 @@ class SlamEstimate:
     never). ``gated_bearings``: the bearings (indices into the dataset's) a chi-square gate
     left out (misreads, outliers; -1 for a bearing not the dataset's, the image stage's). ``attempts``
     (recorded run only): ``(step, landmark, sigma images (2n+1, 2), accepted)`` of every
-    initialisation try.
+    initialisation try. ``smoothed (E, 3)``: a smoother's whole trajectory as it holds it at the
+    end (iSAM2's final estimate, at ``steps``), beside ``pose``, what it knew at each step.
     """
 
     name: str = ""
@@ -43,6 +44,7 @@ class SlamEstimate:
     failures: int = 0
     gated_bearings: np.ndarray | None = None  # indices of the bearings a gate left out
     attempts: list = field(default_factory=list)
+    smoothed: np.ndarray | None = None  # (E, 3) the whole trajectory as held at the end
 
     @property
     def gated(self) -> int:
@@ -86,6 +88,8 @@ def check(est: SlamEstimate, data, cfg, estimator) -> SlamEstimate:
     whole_rows(pose, "pose", allow_empty=False)
     if est.cov is not None:
         psd(as_array(est.cov, "cov", (len(pose), 3, 3)), "cov", None, estimator)
+    if est.smoothed is not None:
+        est.smoothed = as_array(est.smoothed, "smoothed", (len(pose), 3))
     if est.map_steps is None:
         est.map_steps, est.map_mean, est.map_cov = np.zeros(0, int), np.zeros((0, N, 2)), None
     else:

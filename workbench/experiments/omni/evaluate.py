@@ -74,6 +74,7 @@ class RunSummary:
     aligned: dict[str, np.ndarray] = field(default_factory=dict)  # errors after the best rigid alignment
     alignment: dict[str, tuple[float, float, float]] = field(default_factory=dict)  # its rotation, translation
     gated: dict[str, int] = field(default_factory=dict)  # bearings each estimator's gate left out
+    smoothed: dict[str, np.ndarray] = field(default_factory=dict)  # a smoother's errors at the end (G, 3)
     repairs: dict = field(default_factory=dict)  # what the real data needed to be read (omni.real)
     bounds: dict = field(default_factory=dict)  # delay -> {position, heading} (G,) variances; "map" (N,)
 
@@ -100,6 +101,11 @@ def summarise(result: RunResult, cfg: OmniConfig, run: int) -> RunSummary:
         a = umeyama(pose[:, :2], truth[:, :2])
         aligned[name] = pose_errors(truth, a.apply(pose))
         alignment[name] = (a.rotation, float(a.translation[0]), float(a.translation[1]))
+    smoothed = {}
+    for name, est in result.estimates.items():
+        if est.smoothed is not None:
+            final = SlamEstimate(name, est.steps, est.smoothed)
+            smoothed[name] = pose_errors(truth, on_grid(final, grid)[0])
     delays = {n: result.estimators[n].delay for n in result.estimates if n in result.estimators}
     crb = {}
     if result.images is None:  # bearings from images have the image stage's noise, not the model's: no bound
@@ -111,7 +117,7 @@ def summarise(result: RunResult, cfg: OmniConfig, run: int) -> RunSummary:
                       {n: e.failures for n, e in result.estimates.items()},
                       result.images.stats if result.images is not None else None, dict(result.failed),
                       delays, aligned=aligned, alignment=alignment, bounds=crb, repairs=dict(data.repairs or {}),
-                      gated={n: e.gated for n, e in result.estimates.items()})
+                      gated={n: e.gated for n, e in result.estimates.items()}, smoothed=smoothed)
 
 
 def bound_kind(delay: float) -> str:
@@ -204,6 +210,11 @@ def statistics(cfg: OmniConfig, runs: list[RunSummary], label: str = "") -> dict
         entry["rmse_aligned_whole_run"] = {"position": _rms(apos), "heading": _rms(ahead)}
         entry["alignment"] = {"rotation_deg": _rms(np.degrees(rot[:, 0])),
                               "translation": _rms(np.hypot(rot[:, 1], rot[:, 2]))}
+        if all(name in r.smoothed for r in runs):
+            F = np.stack([r.smoothed[name] for r in runs])
+            fpos, fhead = np.hypot(F[..., 0], F[..., 1]), np.degrees(np.abs(F[..., 2]))
+            entry["rmse_smoothed"] = {"position": _rms(fpos[:, settled]), "heading": _rms(fhead[:, settled])}
+            entry["rmse_smoothed_whole_run"] = {"position": _rms(fpos), "heading": _rms(fhead)}
         crb = _bound_summary(runs, name, E, M, settled)
         if crb is not None:
             entry["bound"], entry["efficiency"], entry["efficiency_se"], entry["bound_kind"] = crb

@@ -522,7 +522,9 @@ class _Incremental:
 
 def isam2(data: OmniData, cfg: OmniConfig, kf: Keyframes | None = None, map_every: float = math.inf
           ) -> SlamEstimate:
-    """iSAM2, one update per keyframe; the newest pose and its marginal at every keyframe.
+    """iSAM2, one update per keyframe; the newest pose and its marginal at every keyframe
+    (causal, held to the filtering bound), and its whole trajectory at the end (``smoothed``:
+    iSAM2 is a smoother; this is the answer batch LM is compared with).
 
     The map (means and marginals) is read every ``map_every`` seconds and at the end:
     landmark marginals cost more than the update itself, so Monte Carlo runs read it once.
@@ -541,18 +543,23 @@ def isam2(data: OmniData, cfg: OmniConfig, kf: Keyframes | None = None, map_ever
             last_map = data.t[kf.steps[e]]
             mean = np.full((n_lm, 2), np.nan)
             cov = np.full((n_lm, 2, 2), np.nan)
+            held = inc.estimate()[1] if inc.isam is None else None  # iSAM2 gave up: the LM passes'
             for lm in inc.points:
-                mean[lm] = inc.isam.calculateEstimatePoint2(L(lm))
+                mean[lm] = held[lm] if held is not None else inc.isam.calculateEstimatePoint2(L(lm))
                 cov[lm] = _marginal(inc.isam, L(lm), 2)
             map_steps.append(kf.steps[e])
             map_mean.append(mean)
             map_cov.append(cov)
     return SlamEstimate("isam2", kf.steps.copy(), poses, to_world(covs, poses[:, 2]), np.array(map_steps),
                         np.array(map_mean), np.array(map_cov), inc.first_seen, inc.init_step,
-                        failures=inc.failures, gated_bearings=gated_indices(data, kf, inc.rejected))
+                        failures=inc.failures, gated_bearings=gated_indices(data, kf, inc.rejected),
+                        smoothed=inc.estimate()[0])
 
 
-def _marginal(isam: gtsam.ISAM2, key: int, dim: int) -> np.ndarray:
+def _marginal(isam: gtsam.ISAM2 | None, key: int, dim: int) -> np.ndarray:
+    """A variable's marginal covariance; NaN where iSAM2 cannot give it (or has given up)."""
+    if isam is None:
+        return np.full((dim, dim), np.nan)
     try:
         return isam.marginalCovariance(key)
     except RuntimeError:

@@ -4,7 +4,8 @@ Entity layout (timeline ``time``, seconds of the recorded run 0):
 
 * ``world/{walls,landmarks}`` (static), ``world/truth/{path,vehicle}``;
 * ``map/<estimator>/{path,vehicle,pose_ellipse,landmarks,landmark_ellipses,rays,gated}``
-  (``gated``: the bearings its gate left out, red) and, for the filters,
+  (``gated``: the bearings its gate left out, red; ``path``: the pose it knew at each step),
+  ``map/isam2/smoothed`` (its whole trajectory as held at the end, pale) and, for the filters,
   ``map/<estimator>/pending`` (the UT sigma images of each initialisation try);
 * ``errors/{position,heading}/<estimator>``, ``sigma/{position,heading}/<estimator>``,
   ``nees/<estimator>`` with ``nees/band_{lo,hi}`` (one run, 3 dof, 95 %);
@@ -20,6 +21,7 @@ import rerun as rr
 import rerun.blueprint as rrb
 
 from workbench.estimation import metrics
+from workbench.experiments.omni.estimate import SlamEstimate
 from workbench.experiments.omni.evaluate import RunSummary, mc_curves, on_grid
 from workbench.experiments.omni.run import RunResult
 from workbench.recording import draw
@@ -190,6 +192,12 @@ def record_run(rec: rr.RecordingStream, first: RunResult, zero: RunSummary) -> N
         pose, cov = on_grid(est, grid)
         draw.track(rec, f"{base}/path", pose[:, :2], rgb, -1.25 * x)
         draw.poses(rec, f"{base}/vehicle", TL, t, pose, rgb, arrow)
+        if est.smoothed is not None:
+            # a smoother's whole trajectory as it holds it at the end, paler and thinner than
+            # the path of what it knew at each step
+            final = on_grid(SlamEstimate(name, est.steps, est.smoothed), grid)[0]
+            pale = tuple(int(c + (255 - c) * 0.55) for c in rgb[:3])
+            draw.track(rec, f"{base}/smoothed", final[:, :2], pale, -0.75 * x)
         draw.covariance_ellipses(rec, f"{base}/pose_ellipse", TL, t, pose[:, :2], cov[:, :2, :2], rgb)
         if len(est.map_steps):
             draw.point_sets(rec, f"{base}/landmarks", TL, d.t[est.map_steps], est.map_mean, rgb, 0.35, 0.05)
@@ -236,8 +244,9 @@ def how_to_read(first: RunResult, runs: int) -> str:
         f"- colours: {draw.colour_key(shown)}; the truth white.",
         "- maps, top-down (x east, y north, m), one per estimator, on the same world: walls grey, the true "
                 "landmarks and path white; the estimator's path, pose and 95 % pose ellipse, its landmarks with their "
-        "95 % ellipses, the bearings of the step as yellow rays, those its gate left out (misread barcodes, "
-        "outliers) as red rays, and (the filters) the unscented-transform "
+        "95 % ellipses (iSAM2's path is what it knew at each step; its whole trajectory as it holds it at the "
+        "end, smoothed, is drawn paler), the bearings of the step as yellow rays, those its gate left out "
+        "(misread barcodes, outliers) as red rays, and (the filters) the unscented-transform "
         "sigma points of each landmark initialisation try in orange.",
         f"- run 0: position and heading error, and the pose NEES (3 dof) with its one-run 95 % band "
         f"({one[0]:.2f}-{one[1]:.2f}); own sigmas: the standard deviations each estimator claims.",

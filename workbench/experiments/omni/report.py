@@ -39,6 +39,10 @@ def table(stats: dict) -> str:
             bits.append(f"after the best rigid alignment (evo -a) position rmse {_f(a['position'])} m, "
                         f"heading rmse {_f(a['heading'])} deg (the alignment: {_f(r['rotation_deg'])} deg, "
                         f"{_f(r['translation'])} m, rms over runs)")
+        if e.get("rmse_smoothed_whole_run"):
+            f = e["rmse_smoothed_whole_run"]
+            bits.append(f"its whole trajectory as held at the end (smoothed) position rmse {_f(f['position'])} m, "
+                        f"heading rmse {_f(f['heading'])} deg")
         if e.get("nees_inside_band") is not None:
             bits.append(f"mean NEES inside the band at {100 * e['nees_inside_band']:.0f} % of steps")
         if e["failures"]:
