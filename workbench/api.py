@@ -18,6 +18,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 import json
+import math
 import time
 import warnings
 from collections.abc import Callable, Iterable
@@ -26,7 +27,8 @@ from pathlib import Path
 from typing import Any
 
 from workbench import montecarlo
-from workbench.experiments import get
+from workbench.errors import WorkbenchError
+from workbench.experiments import get, limits
 from workbench.experiments.contract import Experiment, without
 
 
@@ -58,7 +60,7 @@ class Result:
 def configure(experiment: str | Experiment, scenario: str | None = None, **overrides: Any) -> Any:
     """The config ``run`` would use (validated), for a look before running."""
     exp = get(experiment) if isinstance(experiment, str) else experiment
-    return exp.configure(scenario, **overrides).validate()
+    return exp.validate(exp.configure(scenario, **overrides))
 
 
 def run(experiment: str | Experiment, scenario: str | None = None, *, config: Any = None,
@@ -91,9 +93,12 @@ def run(experiment: str | Experiment, scenario: str | None = None, *, config: An
         cfg = exp.configure(scenario, **overrides)
     chosen = exp.select(estimators if estimators is not None else (cfg.estimators or None))
     cfg.estimators = tuple(e.spec for e in chosen)
-    cfg.validate()
+    exp.validate(cfg)
+    limits.check_jobs(jobs)
     out_path = stream.check_output(Path(out), force) if out is not None else None
     metrics_path = stream.check_plain_output(Path(metrics), force, "metrics file") if metrics is not None else None
+    if out_path is not None and metrics_path is not None and out_path.resolve() == metrics_path.resolve():
+        raise WorkbenchError(f"--metrics and --out name the same file ({out_path}): one would replace the other")
     exp.check_extras(cfg, extras, force)
     report = progress or (lambda done, total: None)
     t0 = time.perf_counter()
@@ -135,12 +140,12 @@ def run(experiment: str | Experiment, scenario: str | None = None, *, config: An
         live.flush()
     if out_path is not None:
         with stream.recording(out_path, exp.name, cfg.to_json(), cfg.seed, exp.blueprint(first, summaries),
-                              metrics=stats) as rec:
+                              metrics=stats, force=force) as rec:
             exp.record(rec, first, summaries, table)
         stats["recording"] = str(out_path)
     lines = exp.export(first, stats, extras, force)
     if metrics_path is not None:
-        stream.write_text_atomic(metrics_path, json.dumps(stats, indent=2))
+        stream.write_text_atomic(metrics_path, strict_json(stats), force)
     for name, why in failures.items():
         warnings.warn(f"estimator {name!r} failed: {why}", RuntimeWarning, stacklevel=2)
     return Result(exp.name, cfg, stats, table, first, summaries, out_path, metrics_path, failures, lines, live)
@@ -150,3 +155,27 @@ def summarise_run(experiment: str, cfg: Any, estimators: list, run: int) -> Any:
     """One Monte Carlo run, in whatever process: its dataset, every estimator, its summary."""
     exp = get(experiment)
     return exp.evaluate(exp.run_once(cfg, run, estimators), cfg, run)
+
+
+def strict_json(stats: dict) -> str:
+    """The metrics as strict JSON: a non-finite number (NaN, infinity: no JSON has them) is
+    written as ``null`` and its place named under ``"non_finite"`` with its value."""
+    where: dict[str, str] = {}
+
+    def clean(x: Any, path: str) -> Any:
+        if isinstance(x, dict):
+            return {k: clean(v, f"{path}.{k}" if path else str(k)) for k, v in x.items()}
+        if isinstance(x, (list, tuple)):
+            return [clean(v, f"{path}[{i}]") for i, v in enumerate(x)]
+        if isinstance(x, float) and not math.isfinite(x):
+            where[path] = str(x)
+            return None
+        if hasattr(x, "item") and getattr(x, "ndim", 1) == 0:  # a numpy scalar
+            return clean(x.item(), path)
+        return x
+
+    out = clean(stats, "")
+    if where:
+        out["non_finite"] = {"why": "not a number or infinite (no estimate, or a division by zero): written as null",
+                             "values": where}
+    return json.dumps(out, indent=2, allow_nan=False, default=str)

@@ -38,6 +38,24 @@ RECORDINGS = PROJECT_ROOT / "recordings"
 FAILED = 3  # the run finished, but an estimator failed (its results are left out)
 
 
+class Terminated(KeyboardInterrupt):
+    """SIGTERM, raised where the process is, so every ``finally`` (temporary files, worker
+    pools) runs as it does for Ctrl-C."""
+
+
+def _on_sigterm(signum, frame) -> None:
+    raise Terminated()
+
+
+def main() -> None:
+    """The ``workbench`` command: SIGTERM handled like Ctrl-C (outputs cleaned up, workers
+    ended, one line, no traceback), then the typer app."""
+    import signal
+
+    signal.signal(signal.SIGTERM, _on_sigterm)
+    app()
+
+
 def friendly(fn: Callable) -> Callable:
     """Bad input becomes one line on stderr and exit code 2, never a traceback."""
 
@@ -48,8 +66,11 @@ def friendly(fn: Callable) -> Callable:
         except WorkbenchError as exc:
             typer.echo(f"error: {exc}", err=True)
             raise typer.Exit(2) from None
+        except Terminated:
+            typer.echo("terminated (SIGTERM); nothing half-written is left", err=True)
+            raise typer.Exit(143) from None
         except KeyboardInterrupt:
-            typer.echo("interrupted", err=True)
+            typer.echo("interrupted; nothing half-written is left", err=True)
             raise typer.Exit(130) from None
         except (typer.Exit, SystemExit):
             raise
@@ -124,7 +145,8 @@ def _until_interrupted() -> None:
 
 def _option(opt, exp) -> inspect.Parameter:
     help_text = _escape(opt.described(exp.config_type, exp.scenarios))
-    return inspect.Parameter(opt.field, inspect.Parameter.KEYWORD_ONLY, annotation=opt.type | None,
+    kind = str if opt.type is Path else opt.type  # a path as text: '' is an error, not the current folder
+    return inspect.Parameter(opt.field, inspect.Parameter.KEYWORD_ONLY, annotation=kind | None,
                              default=typer.Option(None, *opt.flags, help=help_text))
 
 
@@ -156,7 +178,7 @@ def _command(exp) -> Callable:
     def command(**given):
         shared = {k: given.pop(k) for k in ("scenario", "out", "force", "metrics", "spawn", "serve", "jobs",
                                             "estimators", "connect")}
-        extras = {opt.field: given.pop(opt.field) for opt in exp.extras}
+        extras = {opt.field: opt.value(given.pop(opt.field)) for opt in exp.extras}
         overrides = {"seed": given.pop("seed"), "runs": given.pop("runs")}
         for opt in exp.options:
             value = opt.value(given.pop(opt.field))
@@ -223,16 +245,40 @@ def demo(force: bool = typer.Option(False, help="Overwrite existing recordings."
 def view(
     file: Path = typer.Argument(..., help="A .rrd recording."),
     web: bool = typer.Option(False, help="Serve the web viewer even where a display exists."),
-    port: int = typer.Option(9090, help="Web viewer port."),
+    port: int = typer.Option(9090, help="Web viewer port (1024-65535)."),
+    host: str = typer.Option("127.0.0.1", help="Address the web viewer binds to (0.0.0.0: every interface)."),
 ) -> None:
-    """Open a recording: the native viewer where a display exists, else the web viewer."""
-    if not file.is_file():
-        raise WorkbenchError(f"no such recording: {file}")
+    """Open a recording: the native viewer where a display exists, else the web viewer (on
+    localhost unless --host says otherwise). Exits with the viewer's exit code."""
+    from workbench.recording import readback
+
+    readback.check_recording(file)
     exe = shutil.which("rerun") or str(Path(sys.executable).with_name("rerun"))
     has_display = bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")
                        or sys.platform in ("darwin", "win32"))
     if has_display and not web:
-        subprocess.run([exe, str(file)], check=False)
-        return
-    typer.echo(f"serving the web viewer at http://localhost:{port} (Ctrl-C to stop)")
-    subprocess.run([exe, "--web-viewer", "--web-viewer-port", str(port), str(file)], check=False)
+        raise typer.Exit(subprocess.run([exe, str(file)], check=False).returncode)
+    if not 1024 <= port <= 65535:
+        raise WorkbenchError(f"--port must be in 1024..65535, got {port}")
+    _port_free(host, port)
+    typer.echo(f"serving the web viewer at http://{'localhost' if host == '127.0.0.1' else host}:{port} "
+               "(Ctrl-C to stop)")
+    code = subprocess.run([exe, "--web-viewer", "--web-viewer-port", str(port), "--bind", host, str(file)],
+                          check=False).returncode
+    raise typer.Exit(code)
+
+
+def _port_free(host: str, port: int) -> None:
+    """A one-line error unless ``host:port`` can be bound now (busy, or not an address here)."""
+    import socket
+
+    try:
+        infos = socket.getaddrinfo(host, port, type=socket.SOCK_STREAM)
+    except socket.gaierror as exc:
+        raise WorkbenchError(f"--host {host!r} is not an address: {exc.strerror}") from None
+    family, _, _, _, address = infos[0]
+    with socket.socket(family, socket.SOCK_STREAM) as s:
+        try:
+            s.bind(address)
+        except OSError as exc:
+            raise WorkbenchError(f"cannot serve on {host}:{port}: {exc.strerror} (busy? choose --port)") from None

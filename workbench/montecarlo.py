@@ -9,9 +9,49 @@ worker, so the result does not depend on the number of processes.
 from __future__ import annotations
 
 import os
+import signal
 from collections.abc import Callable
-from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures import ProcessPoolExecutor, as_completed
 from typing import Any
+
+
+def worker_init() -> None:
+    """Each worker process: Ctrl-C (sent to the whole process group) is the parent's to handle,
+    so the workers print no tracebacks; and on Linux a worker is sent SIGTERM when its parent
+    dies (``prctl(PR_SET_PDEATHSIG)``), so no worker outlives a killed run."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    try:
+        import ctypes
+
+        ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, signal.SIGTERM)  # PR_SET_PDEATHSIG
+        if os.getppid() == 1:  # the parent died before the line above
+            os._exit(1)
+    except (OSError, AttributeError):
+        pass
+
+
+def pool(jobs: int) -> ProcessPoolExecutor:
+    """A process pool of ``jobs`` workers set up by :func:`worker_init`."""
+    return ProcessPoolExecutor(max_workers=jobs, initializer=worker_init)
+
+
+def stop(executor: ProcessPoolExecutor) -> None:
+    """End a pool now: queued runs cancelled, running workers terminated (an interrupt or an
+    error in the parent must not wait for them, nor leave them behind)."""
+    procs = list((getattr(executor, "_processes", None) or {}).values())
+    for p in procs:
+        if p.is_alive():
+            p.terminate()
+    for p in procs:
+        p.join(timeout=5)
+    # the pool's manager thread sees its workers gone and ends; waiting for it here keeps
+    # the interpreter's exit hook from writing to a closed pipe
+    executor.shutdown(wait=True)
+
+
+def _chunk(worker: Callable[[int], Any], runs: list[int]) -> list:
+    return [worker(r) for r in runs]
 
 
 def run_all(worker: Callable[[int], Any], runs: int, first: Any = None, jobs: int | None = None,
@@ -35,9 +75,16 @@ def run_all(worker: Callable[[int], Any], runs: int, first: Any = None, jobs: in
                 progress(1)
     else:
         chunk = max(1, len(todo) // (8 * jobs))
-        with ProcessPoolExecutor(max_workers=jobs) as pool:
-            for s in pool.map(worker, todo, chunksize=chunk):
-                out.append(s)
+        executor = pool(jobs)
+        try:
+            futures = [executor.submit(_chunk, worker, todo[i:i + chunk]) for i in range(0, len(todo), chunk)]
+            for f in as_completed(futures):
+                done = f.result()
+                out.extend(done)
                 if progress:
-                    progress(1)
+                    progress(len(done))
+        except BaseException:
+            stop(executor)
+            raise
+        executor.shutdown(wait=True)
     return sorted(out, key=lambda s: s.run)

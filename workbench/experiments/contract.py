@@ -50,6 +50,7 @@ import os
 import time
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -182,6 +183,11 @@ class Option:
 
     def value(self, given: Any) -> Any:
         """The config value of what the command line parsed (a one-line error if ``parse`` fails)."""
+        if given is not None and self.type is Path:
+            # typed as text on the command line (typer would make '' the current folder, '.')
+            if not str(given).strip():
+                raise WorkbenchError(f"{self.flags[0]} needs a path, got ''")
+            given = Path(str(given))
         if given is None or self.parse is None:
             return given
         try:
@@ -461,6 +467,19 @@ class Experiment:
                                  f"see `workbench {self.name} --help`")
         given = {k: v for k, v in overrides.items() if v is not None}
         return self.config_type(scenario=scenario or next(iter(self.scenarios)), **given)
+
+    def validate(self, cfg: Any) -> Any:
+        """``cfg.validate()`` (the experiment's own ranges), then the checks every experiment
+        shares (:mod:`workbench.experiments.limits`: finite numbers of sane size, seed and runs in
+        range, the memory the run will need); the config, or a one-line
+        :class:`~workbench.errors.WorkbenchError` naming the flag."""
+        from workbench.experiments import limits
+
+        flags = {f: opt.flags[0] for opt in (*self.options, *self.extras) for f in opt.fields}
+        limits.check_values(cfg, flags)  # first: the experiment's own checks may compute with them
+        cfg.validate()
+        limits.check_memory(cfg)
+        return cfg
 
     def select(self, selection: Iterable[Any] | str | None = None) -> list[Estimator]:
         """The estimators to run: names, ``+name`` (the defaults and), specs or functions."""

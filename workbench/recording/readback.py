@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import warnings
 from collections import Counter
 from pathlib import Path
 
@@ -91,3 +92,29 @@ def static_values(path: Path, entity: str, component: str) -> list:
 def rgb(packed: int) -> tuple[int, int, int]:
     """A Rerun colour (0xRRGGBBAA) as ``(r, g, b)``."""
     return (packed >> 24) & 255, (packed >> 16) & 255, (packed >> 8) & 255
+
+
+def check_recording(path: Path) -> None:
+    """A one-line :class:`~workbench.errors.WorkbenchError` unless ``path`` is a readable
+    Rerun recording with something in it (not empty, not truncated, not another kind of file)."""
+    from workbench.errors import WorkbenchError
+
+    path = Path(path)
+    if not path.is_file():
+        raise WorkbenchError(f"no such recording: {path}")
+    try:
+        with open(path, "rb") as f:
+            head = f.read(4)
+    except OSError as exc:
+        raise WorkbenchError(f"cannot read {path}: {exc.strerror}") from None
+    if head != b"RRF2":
+        raise WorkbenchError(f"{path} is not a Rerun recording (.rrd)")
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # "no footer": a legacy or cut file, read by a whole-file scan
+            chunks = sum(1 for _ in RrdReader(str(path)).stream())
+    except Exception as exc:  # the reader's errors on a damaged file
+        raise WorkbenchError(f"{path} is a damaged recording: {str(exc).splitlines()[0] if str(exc) else exc}"
+                             ) from None
+    if chunks == 0:
+        raise WorkbenchError(f"{path} is an empty recording")

@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import datetime
+import errno
 import json
 import os
 import shlex
@@ -25,14 +26,21 @@ def check_output(path: Path, force: bool) -> Path:
     path = Path(path).expanduser()
     if path.suffix != ".rrd":
         raise WorkbenchError(f"recording path must end in .rrd: {path}")
-    if path.is_dir():
-        raise WorkbenchError(f"recording path is a directory: {path}")
     return check_plain_output(path, force, "recording")
 
 
 def check_plain_output(path: Path, force: bool, what: str) -> Path:
-    """The same checks for another output file (metrics JSON, CSV)."""
+    """The same checks for another output file (metrics JSON, CSV): a file name is given; what
+    is there already is a regular file (never a directory, a device or a pipe, even with
+    ``force``) and is replaced only with ``force``; its folder can be made and written."""
+    raw = str(path)
     path = Path(path).expanduser()
+    if not raw.strip() or raw.endswith(("/", os.sep)) or path.name in ("", ".", ".."):
+        raise WorkbenchError(f"the {what} needs a file name, got {raw!r}")
+    if path.is_dir():
+        raise WorkbenchError(f"the {what} path is a directory: {path}")
+    if path.exists() and not path.is_file():
+        raise WorkbenchError(f"the {what} path is not a regular file (a device or a pipe): {path}")
     if path.exists() and not force:
         raise WorkbenchError(f"{path} exists; pass --force to overwrite it")
     try:
@@ -44,11 +52,61 @@ def check_plain_output(path: Path, force: bool, what: str) -> Path:
     return path
 
 
-def write_text_atomic(path: Path, text: str) -> None:
-    """Write ``text`` to a temporary name beside ``path``, then rename it over ``path``."""
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    tmp.write_text(text)
-    os.replace(tmp, path)
+def temporary(path: Path) -> Path:
+    """The temporary name an output is written to before :func:`publish` (hidden, beside it)."""
+    return path.with_name(f".{path.name}.{os.getpid()}.tmp")
+
+
+def publish(tmp: Path, path: Path, force: bool) -> None:
+    """Move a finished temporary file to ``path``. Without ``force`` the name is claimed
+    atomically (a hard link, which fails if anything is there): two runs racing to the same new
+    name cannot replace each other's result; the loser gets a one-line error. ``tmp`` is gone
+    afterwards whatever happens."""
+    try:
+        if path.exists() and not path.is_file():
+            raise WorkbenchError(f"{path} is not a regular file (a device, a pipe or a folder); not replaced")
+        if force:
+            os.replace(tmp, path)
+            return
+        try:
+            os.link(tmp, path)
+        except FileExistsError:
+            raise WorkbenchError(f"{path} appeared while this run was writing it (another run?); "
+                                 "pass --force to overwrite it") from None
+        except OSError as exc:  # a file system without hard links: claim the name, then replace
+            if exc.errno not in (errno.EPERM, errno.EOPNOTSUPP, errno.EXDEV, errno.EMLINK):
+                raise
+            try:
+                os.close(os.open(path, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o644))
+            except FileExistsError:
+                raise WorkbenchError(f"{path} appeared while this run was writing it (another run?); "
+                                     "pass --force to overwrite it") from None
+            os.replace(tmp, path)
+    except OSError as exc:
+        raise WorkbenchError(f"cannot write {path}: {exc.strerror or exc}") from None
+    finally:
+        if tmp.exists():
+            tmp.unlink()
+
+
+def write_text_atomic(path: Path, text: str, force: bool = True) -> None:
+    """Write ``text`` to a temporary name beside ``path``, then :func:`publish` it (without
+    ``force``: only if ``path`` is still free). On any error (a full disk, a signal) the
+    temporary file is removed and ``path`` untouched."""
+    path = Path(path)
+    tmp = temporary(path)
+    try:
+        with open(tmp, "w", encoding="utf-8") as f:
+            f.write(text)
+            f.flush()
+            os.fsync(f.fileno())
+    except OSError as exc:
+        tmp.unlink(missing_ok=True)
+        raise WorkbenchError(f"cannot write {path}: {exc.strerror or exc}") from None
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+    publish(tmp, path, force)
 
 
 def command_line() -> str:
@@ -153,17 +211,18 @@ def _listening(port: int, wait: float = 5.0) -> bool:
 
 @contextmanager
 def recording(path: Path, experiment: str, config: dict, seed: int,
-              blueprint: rrb.Blueprint, metrics: dict | None = None):
+              blueprint: rrb.Blueprint, metrics: dict | None = None, force: bool = True):
     """A recording stream saved to ``path`` atomically, with its properties stored: the
     experiment, its config, the package version, the git commit, the seed, the command line
     that made it and when, and (``metrics``) the numbers it reports, so ``workbench info``
     tells what made it and ``workbench replay`` whether it reproduces.
 
-    Yields the stream; on success the temporary file is renamed to ``path``; on an error it
-    is removed and ``path`` is untouched.
+    Yields the stream; on success the temporary file is published to ``path`` (:func:`publish`:
+    without ``force`` only if the name is still free); on an error or a signal it is removed
+    and ``path`` is untouched.
     """
     path = Path(path)
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    tmp = temporary(path)
     rec = rr.RecordingStream(f"workbench_{experiment}")
     rec.set_sinks(rr.FileSink(str(tmp)), default_blueprint=blueprint)
     _properties(rec, experiment, config, seed)
@@ -174,9 +233,13 @@ def recording(path: Path, experiment: str, config: dict, seed: int,
         yield rec
         ok = True
     finally:
-        rec.flush()
-        rec.disconnect()
-        if ok:
-            os.replace(tmp, path)
-        elif tmp.exists():
-            tmp.unlink()
+        try:
+            rec.flush()
+            rec.disconnect()
+        finally:
+            if not ok:
+                tmp.unlink(missing_ok=True)
+    if not tmp.is_file() or tmp.stat().st_size == 0:
+        tmp.unlink(missing_ok=True)
+        raise WorkbenchError(f"the recording {path} could not be written (a full disk?)")
+    publish(tmp, path, force)

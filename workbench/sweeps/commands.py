@@ -23,7 +23,7 @@ def sweep(
     runs: int = typer.Option(10, help="Monte Carlo runs per cell."),
     seed: int = typer.Option(0, help="Run k of every cell draws from (seed, k)."),
     estimators: str = typer.Option(None, help="As for the experiment's command \\[its defaults, or the preset's]."),
-    out: Path = typer.Option(None, help="The sweep folder \\[sweeps/<experiment>]."),
+    out: str = typer.Option(None, help="The sweep folder \\[sweeps/<experiment>]."),
     force: bool = typer.Option(False, help="Start the sweep in --out again, deleting its results."),
     resume: bool = typer.Option(False, help="Finish the sweep in --out: run only the tasks not on disk."),
     chunk: int = typer.Option(None, help="Runs per task \\[about 8 tasks per worker, at most 50]."),
@@ -63,7 +63,9 @@ def sweep(
         overrides.update(grids.expand(exp, {name: grids.parse_value(exp, name, value)}))
     if not spec:
         raise WorkbenchError("nothing to sweep: give --grid KEY=V1,V2,... or --preset NAME")
-    folder = out or PROJECT_ROOT / "sweeps" / exp.name
+    if out is not None and (not out.strip() or Path(out).resolve() == Path.cwd().resolve()):
+        raise WorkbenchError(f"--out {out!r}: name a folder of its own for the sweep (--force empties it)")
+    folder = Path(out) if out is not None else PROJECT_ROOT / "sweeps" / exp.name
     bar, task = _progress()
     with bar:
         res = runner.sweep(exp.name, scenario, spec, overrides, runs, seed, tuple(_names(chosen)), folder, chunk,

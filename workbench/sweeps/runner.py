@@ -16,15 +16,15 @@ import os
 import shutil
 import time
 from collections.abc import Callable, Iterator, Mapping
-from concurrent.futures import Executor, ProcessPoolExecutor, as_completed
+from concurrent.futures import Executor, as_completed
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from workbench import __version__
+from workbench import __version__, montecarlo
 from workbench.errors import WorkbenchError
-from workbench.experiments import get
+from workbench.experiments import get, limits
 from workbench.sweeps import grid as grids
 from workbench.sweeps.tasks import Task, run_task, write
 
@@ -80,11 +80,14 @@ def executor(jobs: int | None = None, scheduler: str | None = None,
                 cluster.close()
         return
     jobs = jobs or min(2, os.cpu_count() or 1)
-    pool = ProcessPoolExecutor(max_workers=jobs)
+    limits.check_jobs(jobs)
+    local = montecarlo.pool(jobs)
     try:
-        yield pool, f"local pool, {jobs} process(es)", jobs
-    finally:
-        pool.shutdown(wait=False, cancel_futures=True)
+        yield local, f"local pool, {jobs} process(es)", jobs
+    except BaseException:
+        montecarlo.stop(local)
+        raise
+    local.shutdown(wait=True)
 
 
 def chunk_size(runs: int, cells: int, workers: int, given: int | None = None) -> int:

@@ -53,7 +53,7 @@ class Task:
         exp = get(self.experiment)
         given = {**dict(self.fixed), **expand(exp, dict(self.params))}
         scenario = given.pop("scenario", self.scenario)
-        return exp.configure(scenario, seed=self.seed, runs=max(1, self.stop), **given).validate()
+        return exp.validate(exp.configure(scenario, seed=self.seed, runs=max(1, self.stop), **given))
 
 
 def config_hash(cfg: Any) -> str:

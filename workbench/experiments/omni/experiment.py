@@ -6,6 +6,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from workbench.errors import require
 from workbench.experiments.contract import Demo, Experiment, Preset
 from workbench.experiments.omni.config import EXTRAS, OPTIONS, SCENARIOS, OmniConfig
 from workbench.experiments.omni.estimate import SlamEstimate
@@ -43,6 +44,9 @@ class Omni(Experiment):
         from workbench.recording import stream
 
         if extras.get("export_tum") is not None:
+            folder = str(extras["export_tum"])
+            require(folder.strip() != "", "--export-tum needs a folder name, got ''")
+            require(not Path(folder).exists() or Path(folder).is_dir(), f"--export-tum {folder}: not a folder")
             for name in ("truth", *cfg.estimators):
                 stream.check_plain_output(Path(extras["export_tum"]) / f"{name.split('=')[0]}.tum", force,
                                           "TUM trajectory")

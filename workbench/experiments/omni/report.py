@@ -56,12 +56,18 @@ def table(stats: dict) -> str:
     lines += [""] + bounds.table(stats, (("position", "m"), ("heading", "deg"), ("map", "m")))
     im = stats.get("images")
     if im:
-        lines += ["", f"Image stage ({im['image_size']:.0f} px round images, {im['frames']:.0f} frames a run): "
-                  f"bearing rmse {_f(im['bearing_rmse'], '.3f')} deg, bias {_f(im['bearing_bias'], '.3f')} deg; "
-                  f"{100 * im['detection_rate']:.1f} % of the lines in view detected, "
-                  f"{im['false_detections']:.1f} false detections a run; {100 * im['association_rate']:.1f} % of "
-                  f"detections associated with their own line ({im['tracks']:.1f} tracks for "
-                  f"{im['landmarks']:.1f} lines); {im['seconds']:.1f} s a run"]
+        def pct(x: float | None) -> str:
+            return "-" if x is None else f"{100 * x:.1f}"
+
+        lines += ["", f"Image stage ({_f(im['image_size'], '.0f')} px round images, "
+                  f"{_f(im['frames'], '.0f')} frames a run): bearing rmse {_f(im['bearing_rmse'], '.3f')} deg, "
+                  f"bias {_f(im['bearing_bias'], '.3f')} deg; "
+                  f"{pct(im['detection_rate'])} % of the lines in view detected, "
+                  f"{_f(im['false_detections'], '.1f')} false detections a run; {pct(im['association_rate'])} % of "
+                  f"detections associated with their own line ({_f(im['tracks'], '.1f')} tracks for "
+                  f"{_f(im['landmarks'], '.1f')} lines); {_f(im['seconds'], '.1f')} s a run"]
+        if im.get("bearing_rmse") is None:
+            lines.append("Nothing was detected in any frame: the estimators had no bearings.")
     if stats["scenario"] == "paper":
         lines += ["", PAPER_CLAIMS]
     return "\n".join(lines)

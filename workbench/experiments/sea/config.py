@@ -86,6 +86,14 @@ class SeaConfig:
     def steps(self) -> int:
         return int(round(self.duration / self.dt)) + 1
 
+    def memory_bytes(self) -> tuple[float, str]:
+        """The memory a run will need (for :mod:`workbench.experiments.limits`): measured at
+        ~20 kB a step for the six estimators of one run (0.24 GB at 720 steps, 0.29 GB at 3600),
+        plus ~0.5 kB a step for each run's summary the parent keeps."""
+        steps = self.duration / self.dt + 1
+        need = 3e8 + 2e4 * steps + 500.0 * steps * self.runs
+        return need, f"{steps:.3g} steps (--duration / --dt), {self.runs} run(s)"
+
     def validate(self) -> SeaConfig:
         """Raise a one-line :class:`WorkbenchError` for any value the experiment cannot use."""
         require(self.scenario in SCENARIOS,
@@ -120,6 +128,9 @@ class SeaConfig:
         require(self.observer == "mast" or self.scenario == "ais", "--observer uav needs --scenario ais")
         require(self.uav_start >= 0, f"--uav-start must not be negative, got {self.uav_start}")
         require(self.steps > params + 1, "the run is too short for the AR models")
+        require(self.horizon + params + 1 < self.steps,
+                f"--horizon {self.horizon} steps leaves nothing to forecast from in a run of {self.steps} steps "
+                f"(--duration / --dt; the AR models need {params + 1} before the first forecast)")
         w, h = self.image_size
         require(160 <= w <= 7680 and 90 <= h <= 4320,
                 f"--image-size must be within 160x90 .. 7680x4320, got {w}x{h}")

@@ -107,6 +107,26 @@ class TerrainConfig:
         """Time between the exposures (s): the dynamics A's step."""
         return self.baseline / self.speed
 
+    def memory_bytes(self) -> tuple[float, str]:
+        """The memory a synthetic run will need (for :mod:`workbench.experiments.limits`): the
+        DEM and the albedo raster over both footprints and the error margins (as
+        :func:`~workbench.experiments.terrain.scenario.synthetic_scene` sizes them; a few float64
+        arrays of each while they are made), and the ray casting's arrays per pixel. The real
+        pair is sized by its files."""
+        if self.scenario != "synthetic":
+            return 3e8, "the real frames"
+        w, h = self.image_size
+        foot_x = self.height * self.sensor_mm[0] / self.focal_mm
+        foot_y = self.height * self.sensor_mm[1] / self.focal_mm
+        margin = 3.0 * self.max_linear + 0.3 * foot_x + 3.0 * self.max_angular * self.height + 3 * self.relief
+        span_x, span_y = self.baseline + foot_x + 2 * margin, foot_y + 2 * margin
+        dem = (span_x / self.dem_spacing + 1) * (span_y / self.dem_spacing + 1)
+        texel = max(1.0, min(foot_x / w, foot_y / h) / 2.0)
+        albedo = (span_x / texel + 1) * (span_y / texel + 1)
+        need = 3e8 + 8 * 8.0 * (dem + albedo) + 8 * 30.0 * w * h
+        return need, f"a {span_x / 1e3:.3g} x {span_y / 1e3:.3g} km DEM at {self.dem_spacing:g} m and its texture " \
+                     f"(--height, --focal, --dem-spacing), {w}x{h} pixels"
+
     def validate(self) -> TerrainConfig:
         """Raise a one-line :class:`WorkbenchError` on any value out of range."""
         require(self.scenario in SCENARIOS, f"unknown scenario {self.scenario!r}; one of {', '.join(SCENARIOS)}")

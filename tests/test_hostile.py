@@ -1,0 +1,289 @@
+"""What a hostile but realistic user tries: bad option values (every option's whole value space,
+property-based), outputs that are directories, devices or the same file, racing writers, a
+full disk, signals to a running process, and files that are not recordings for ``view``.
+Each must end in a one-line error and exit code 2 (or correct behaviour): never a traceback,
+an "internal error", a hang, a leftover temporary file or a metrics file that is not JSON."""
+
+from __future__ import annotations
+
+import errno
+import json
+import math
+import os
+import signal
+import socket
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+from typer.testing import CliRunner
+
+from workbench import api
+from workbench.cli import app
+from workbench.errors import WorkbenchError
+from workbench.experiments import all_experiments
+from workbench.recording import stream
+
+RUNNER = CliRunner()
+
+
+def cli(*args: str):
+    return RUNNER.invoke(app, list(args))
+
+
+def one_line_error(result) -> str:
+    err = result.stderr.strip()
+    assert result.exit_code == 2, (result.exit_code, err, result.stdout[-500:])
+    assert err.startswith("error:") and "\n" not in err and "internal error" not in err, err
+    return err
+
+
+# --- 1. every example of the issue, typed as shown ----------------------------------------------
+
+EXAMPLES = [
+    ("sea --seed -1", "--seed"),
+    ("sea --duration 1", "--horizon"),
+    ("sea --horizon 1000", "--horizon"),
+    ("sea --jobs -1", "--jobs"),
+    ("sea --jobs 30", "--jobs"),
+    ("sea --duration inf", "--duration"),
+    ("sea --sigma-alpha inf", "--sigma-alpha"),
+    ("sea --height 1e300", "--height"),
+    ("sea --dt 1e-5", "memory"),
+    ("sea --runs 1000000000", "--runs"),
+    ("sea --seed 99999999999999999999", "--seed"),
+    ("terrain --size 100x100 --height 1e6", "memory"),
+    ("terrain --focal 0.01", "memory"),
+    ("terrain --estimators ''", "estimator"),
+    ("omni --duration 30 --sigma-v 1e300", "--sigma-v"),
+    ("omni --kappa inf", "--kappa"),
+    ("omni --relin-threshold inf", "--relin-threshold"),
+    ("omni --image-noise 1e300", "--image-noise"),
+]
+
+
+@pytest.mark.parametrize("line, names", EXAMPLES, ids=[e[0] for e in EXAMPLES])
+def test_issue_examples_are_one_line_errors(tmp_path, line, names):
+    import shlex
+
+    out = tmp_path / "x.rrd"
+    err = one_line_error(cli(*shlex.split(line), "--out", str(out)))
+    assert names in err
+    assert not out.exists() and not list(tmp_path.iterdir())
+
+
+@pytest.mark.parametrize("where", ["''", "DIR", "/dev/null", "SAME"])
+def test_outputs_that_cannot_be_a_file(tmp_path, where):
+    out = tmp_path / "a.rrd"
+    target = {"''": "", "DIR": str(tmp_path), "/dev/null": "/dev/null", "SAME": str(out)}[where]
+    for flag in ("--metrics", "--out") if where != "SAME" else ("--metrics",):
+        args = ["sea", "--duration", "5", "--horizon", "5", "--force"]
+        args += ["--out", str(out), flag, target] if flag == "--metrics" else ["--out", target]
+        if where == "''" and flag == "--out":
+            continue  # an empty --out is "not given": the default path
+        one_line_error(cli(*args))
+    assert not out.exists()
+    assert os.path.exists("/dev/null") and not os.path.isfile("/dev/null")
+
+
+def test_export_tum_needs_a_folder_name(tmp_path):
+    for folder in ("", str(tmp_path / "a.rrd")):
+        (tmp_path / "a.rrd").write_text("not a folder")
+        assert "--export-tum" in one_line_error(cli("omni", "--duration", "5", "--out", str(tmp_path / "b.rrd"),
+                                                    "--export-tum", folder))
+
+
+# --- 2. property-based: every option's value space -----------------------------------------------
+
+GENERATED = {"cases": 0, "errors": 0}
+FLOATS = st.one_of(st.floats(allow_nan=True, allow_infinity=True), st.sampled_from(
+    [0.0, -0.0, -1.0, 1e-300, 1e300, 1e9, 1e10, -1e10, 5e-324, math.nan, math.inf, -math.inf]))
+INTS = st.one_of(st.integers(-2**70, 2**70), st.sampled_from([0, -1, 1, 2**31, 2**53 + 1, 2**63, -2**63]))
+TEXT = st.one_of(st.text(max_size=40), st.sampled_from(
+    ["", " ", "0", "-1", "nan", "inf", "1e300", "0x0", "1x1", "99999x99999", "all", "x", "\x00", "é" * 5]))
+OPTIONS = [(exp, opt) for exp in all_experiments() for opt in exp.options if opt.switch is None]
+
+
+def _strategy(opt):
+    if opt.type is int:
+        return INTS
+    if opt.type is float:
+        return FLOATS
+    return TEXT
+
+
+@pytest.mark.parametrize("exp, opt", OPTIONS, ids=[f"{e.name}{o.flags[0]}" for e, o in OPTIONS])
+def test_every_option_value_is_a_config_or_one_line_error(exp, opt):
+    """Any value a user can type for any option (through the option's own parser) gives a
+    validated config or a :class:`WorkbenchError`: never another exception."""
+    scenarios = list(exp.scenarios)
+
+    @settings(max_examples=40, deadline=None, database=None, derandomize=True,
+              suppress_health_check=[HealthCheck.too_slow])
+    @given(value=_strategy(opt), scenario=st.sampled_from(scenarios))
+    def check(value, scenario):
+        GENERATED["cases"] += 1
+        try:
+            parsed = opt.value(value if opt.type is not Path else Path(str(value) or "."))
+            cfg = api.configure(exp, scenario, **{f: parsed for f in opt.fields})
+        except WorkbenchError as exc:
+            GENERATED["errors"] += 1
+            assert "\n" not in str(exc) and str(exc)
+            return
+        for f in opt.fields:  # what was accepted is a finite, sane number
+            v = getattr(cfg, f)
+            for x in (v if isinstance(v, tuple) else (v,)):
+                if isinstance(x, float):
+                    assert math.isfinite(x) and abs(x) <= 1e9, (f, x)
+
+    check()
+
+
+def test_the_property_tests_generated_thousands_of_cases():
+    """Runs after the property tests (file order): they tried thousands of values, most refused."""
+    if GENERATED["cases"] == 0:
+        pytest.skip("run with the property tests above")
+    print(f"\nproperty-based cases: {GENERATED['cases']}, one-line errors: {GENERATED['errors']}")
+    assert GENERATED["cases"] >= 30 * len(OPTIONS) and GENERATED["errors"] > GENERATED["cases"] / 4
+
+
+# --- 3. outputs: racing writers, a full disk, strict JSON -----------------------------------------
+
+def test_two_racing_writers_cannot_replace_each_other(tmp_path):
+    path = tmp_path / "m.json"
+    first, second = stream.temporary(path), path.with_name(".m.json.other.tmp")
+    first.write_text("first")
+    second.write_text("second")
+    stream.publish(first, path, force=False)
+    with pytest.raises(WorkbenchError, match="appeared while this run was writing"):
+        stream.publish(second, path, force=False)
+    assert path.read_text() == "first" and not first.exists() and not second.exists()
+
+
+def test_a_full_disk_leaves_nothing_behind(tmp_path, monkeypatch):
+    path = tmp_path / "m.json"
+    real_open = open
+
+    def full(file, mode="r", *a, **k):
+        f = real_open(file, mode, *a, **k)
+        if "w" in mode:
+            def no_space(*_):
+                raise OSError(errno.ENOSPC, "No space left on device")
+            f.write = no_space
+        return f
+
+    monkeypatch.setattr("builtins.open", full)
+    with pytest.raises(WorkbenchError, match="No space left"):
+        stream.write_text_atomic(path, "{}", force=False)
+    monkeypatch.undo()
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_device_is_never_replaced(tmp_path):
+    tmp = tmp_path / ".x.tmp"
+    tmp.write_text("x")
+    with pytest.raises(WorkbenchError, match="not a regular file"):
+        stream.publish(tmp, Path("/dev/null"), force=True)
+    assert not tmp.exists() and not os.path.isfile("/dev/null")
+
+
+def test_metrics_are_strict_json():
+    text = api.strict_json({"a": float("nan"), "b": [1.0, float("inf")], "c": {"d": np.float64("-inf")}, "e": 2})
+
+    def refuse(name):
+        raise AssertionError(f"{name} in the metrics")
+
+    out = json.loads(text, parse_constant=refuse)
+    assert out["a"] is None and out["b"] == [1.0, None] and out["c"]["d"] is None and out["e"] == 2
+    assert set(out["non_finite"]["values"]) == {"a", "b[1]", "c.d"}
+
+
+def test_a_run_writes_strict_json_metrics(tmp_path):
+    m = tmp_path / "m.json"
+    r = cli("omni", "--duration", "10", "--runs", "1", "--out", str(tmp_path / "o.rrd"), "--metrics", str(m))
+    assert r.exit_code == 0, r.stderr
+    json.loads(m.read_text(), parse_constant=lambda c: pytest.fail(f"{c} in the metrics"))
+    assert not [p for p in tmp_path.iterdir() if p.name.endswith(".tmp")]
+
+
+# --- 4. signals to a running process ----------------------------------------------------------
+
+@pytest.mark.parametrize("how", ["SIGTERM", "SIGINT to the group"])
+def test_signals_end_the_run_and_its_workers_cleanly(tmp_path, how):
+    p = subprocess.Popen([sys.executable, "-m", "workbench", "sea", "--runs", "400", "--duration", "30",
+                          "--out", str(tmp_path / "s.rrd"), "--metrics", str(tmp_path / "s.json")],
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
+    workers: list[str] = []
+    for _ in range(200):  # until the Monte Carlo pool is up
+        time.sleep(0.2)
+        workers = subprocess.run(["pgrep", "-P", str(p.pid)], capture_output=True, text=True).stdout.split()
+        if len(workers) >= 2 or p.poll() is not None:
+            break
+    assert len(workers) >= 2, "the pool never started"
+    if how == "SIGTERM":
+        p.send_signal(signal.SIGTERM)
+    else:
+        os.killpg(p.pid, signal.SIGINT)
+    _, err = p.communicate(timeout=60)
+    assert p.returncode == (143 if how == "SIGTERM" else 130), err
+    assert err.strip().count("\n") == 0 and "Traceback" not in err, err
+    for _ in range(50):
+        if not any(os.path.exists(f"/proc/{w}") for w in workers):
+            break
+        time.sleep(0.2)
+    assert not any(os.path.exists(f"/proc/{w}") for w in workers), "a worker outlived its run"
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_workers_end_when_their_parent_is_killed(tmp_path):
+    p = subprocess.Popen([sys.executable, "-m", "workbench", "sea", "--runs", "400", "--duration", "30",
+                          "--out", str(tmp_path / "s.rrd")], stdout=subprocess.DEVNULL,
+                         stderr=subprocess.DEVNULL, start_new_session=True)
+    workers: list[str] = []
+    for _ in range(200):
+        time.sleep(0.2)
+        workers = subprocess.run(["pgrep", "-P", str(p.pid)], capture_output=True, text=True).stdout.split()
+        if len(workers) >= 2:
+            break
+    p.kill()
+    p.wait()
+    for _ in range(50):
+        if not any(os.path.exists(f"/proc/{w}") for w in workers):
+            break
+        time.sleep(0.2)
+    assert workers and not any(os.path.exists(f"/proc/{w}") for w in workers)
+
+
+# --- 5. view ----------------------------------------------------------------------------------
+
+@pytest.fixture(scope="module")
+def a_recording(tmp_path_factory) -> Path:
+    out = tmp_path_factory.mktemp("view") / "s.rrd"
+    r = cli("sea", "--duration", "5", "--horizon", "5", "--out", str(out))
+    assert r.exit_code == 0, r.stderr
+    return out
+
+
+def test_view_refuses_what_is_not_a_recording(tmp_path, a_recording):
+    empty = tmp_path / "empty.rrd"
+    empty.write_bytes(b"")
+    cut = tmp_path / "cut.rrd"
+    cut.write_bytes(a_recording.read_bytes()[: a_recording.stat().st_size // 2])
+    for f, why in ((empty, "not a Rerun recording"), (cut, "damaged"), (Path("/etc/passwd"), "not a Rerun"),
+                   (tmp_path / "none.rrd", "no such recording")):
+        assert why in one_line_error(cli("view", str(f), "--web"))
+
+
+def test_view_checks_the_port(a_recording):
+    for port in ("-1", "70000", "80"):
+        assert "--port" in one_line_error(cli("view", str(a_recording), "--web", "--port", port))
+    with socket.socket() as busy:
+        busy.bind(("127.0.0.1", 0))
+        busy.listen()
+        port = busy.getsockname()[1]
+        assert "busy" in one_line_error(cli("view", str(a_recording), "--web", "--port", str(port)))
