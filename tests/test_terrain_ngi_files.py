@@ -8,10 +8,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from launcher import wb
+from launcher import DATA, wb
 
 from workbench.errors import DataWarning, WorkbenchError
-from workbench.experiments.terrain import ngi, ngi_orientation
+from workbench.experiments.terrain import ngi, ngi_interior, ngi_orientation
 
 TEXT_ROWS = [  # the real file's first and last rows, and two made up
     ("3324c_2015_1004_05_0182_RGB", -55094.504480, -3727407.037480, 5258.307930, -0.349216, 0.298484, -179.086702),
@@ -116,3 +116,96 @@ def test_cut_orientation_through_the_command_line(tmp_path):
     assert r.returncode == 2, r.stderr
     assert "line 4 is cut short" in r.stderr and len(r.stderr.strip().splitlines()) == 1
     assert not (tmp_path / "t.rrd").exists()
+
+
+# --- the interior orientation, ngi_int_param.yaml --------------------------------------------
+
+YAML = """Integraph DMC:
+    type: pinhole
+    im_size: [640, 1152]
+    focal_len: {focal}
+    sensor_size: [92.16, 165.888]
+    cx: {cx}
+    cy: 0.0
+"""
+
+
+def yaml_file(folder: Path, focal="120.0", cx="0.0", text: str | None = None) -> Path:
+    path = folder / ngi_interior.FILE
+    path.write_text(text if text is not None else YAML.format(focal=focal, cx=cx))
+    return path
+
+
+def test_interior_read_from_the_file(tmp_path):
+    cam = ngi_interior.read(yaml_file(tmp_path))
+    assert cam.size == (640, 1152) and cam.focal == (120.0, 120.0) and cam.sensor == (92.16, 165.888)
+    k = cam.intrinsics(160, 288)
+    # by hand: 120 mm over 92.16 mm across 160 px; over 165.888 mm across 288 px; the centre
+    assert np.isclose(k.fx, 120 * 160 / 92.16) and np.isclose(k.fy, 120 * 288 / 165.888)
+    assert (k.cx, k.cy) == (79.5, 143.5)
+    shifted = ngi_interior.read(yaml_file(tmp_path, focal="[125.0, 125.0]", cx="0.01")).intrinsics(160, 288)
+    assert np.isclose(shifted.fx, 125 * 160 / 92.16) and np.isclose(shifted.cx, 79.5 + 0.01 * 288)
+
+
+@pytest.mark.parametrize("text, expected", [
+    (YAML.format(focal="120.0", cx="0.0").replace("pinhole", "fisheye"), "not supported (only pinhole)"),
+    (YAML.format(focal="-120.0", cx="0.0"), "focal_len must be positive"),
+    (YAML.format(focal=".nan", cx="0.0"), "focal_len must be positive finite"),
+    (YAML.format(focal="120.0", cx="0.7"), "off the frame"),
+    (YAML.format(focal="120.0", cx="0.0").replace("[640, 1152]", "[640]"), "im_size must be two numbers"),
+    (YAML.format(focal="120.0", cx="0.0").replace("[640, 1152]", "[640.5, 1152]"), "whole pixels"),
+    (YAML.format(focal="120.0", cx="0.0") + "    k1: 0.1\n", "distortion k1"),
+    (YAML.format(focal="120.0", cx="0.0") + "    zoom: 2\n", "unknown parameter(s) zoom"),
+    ("Integraph DMC:\n    type: [pinhole\n", "not valid YAML"),
+    ("just text", "expected one camera"),
+])
+def test_malformed_interior(tmp_path, text, expected):
+    assert expected in one_line_error(ngi_interior.read, yaml_file(tmp_path, text=text))
+
+
+def test_interior_in_utf16_is_an_error(tmp_path):
+    path = tmp_path / ngi_interior.FILE
+    path.write_bytes(YAML.format(focal="120.0", cx="0.0").encode("utf-16"))
+    assert "cannot read ngi_int_param.yaml" in one_line_error(ngi_interior.read, path)
+
+
+def test_missing_interior_is_the_readme_camera_with_a_warning(tmp_path):
+    with pytest.warns(DataWarning, match="ngi_int_param.yaml not found"):
+        assert ngi_interior.interior(tmp_path) == ngi_interior.DMC
+
+
+def test_malformed_interior_through_the_command_line(tmp_path):
+    yaml_file(tmp_path, focal="0")
+    r = wb("terrain", "--scenario", "ngi", "--data", str(tmp_path), "--out", str(tmp_path / "t.rrd"))
+    assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1, r.stderr
+    assert "focal_len must be positive" in r.stderr and not (tmp_path / "t.rrd").exists()
+
+
+def test_rgba_frame_alpha_left_out(tmp_path):
+    import cv2
+
+    img = np.zeros((1152, 640, 4), np.uint8)
+    img[..., :3] = 200
+    img[..., 3] = 0  # fully transparent: averaged in, it would pull the grey to 150
+    cv2.imwrite(str(tmp_path / "f.tif"), img)
+    grey = ngi._frame(tmp_path / "f.tif", (160, 288), (640, 1152))
+    assert np.allclose(grey, 200 / 255)
+    img16 = np.full((1152, 640), 40000, np.uint16)
+    cv2.imwrite(str(tmp_path / "g.tif"), img16)
+    assert np.allclose(ngi._frame(tmp_path / "g.tif", (160, 288), (640, 1152)), 40000 / 65535)
+    assert "ngi_int_param.yaml says 320x576" in one_line_error(ngi._frame, tmp_path / "g.tif", (160, 288), (320, 576))
+
+
+@pytest.mark.skipif(not (DATA / "ngi" / "dem.tif").is_file(), reason="needs the real NGI data")
+def test_the_interior_read_changes_the_scene(tmp_path):
+    """The real folder with only the YAML changed (a 125 mm lens): the scene's camera follows it."""
+    from workbench.experiments.terrain.config import TerrainConfig
+
+    for f in (DATA / "ngi").iterdir():
+        if f.name != ngi_interior.FILE:
+            (tmp_path / f.name).symlink_to(f)
+    yaml_file(tmp_path, focal="125.0")
+    base = ngi.load(TerrainConfig(scenario="ngi", data=DATA / "ngi").validate())
+    changed = ngi.load(TerrainConfig(scenario="ngi", data=tmp_path).validate())
+    assert np.isclose(changed.k.fx / base.k.fx, 125 / 120) and np.isclose(changed.k.fy / base.k.fy, 125 / 120)
+    assert np.array_equal(changed.images, base.images)
