@@ -287,3 +287,79 @@ def test_view_checks_the_port(a_recording):
         busy.listen()
         port = busy.getsockname()[1]
         assert "busy" in one_line_error(cli("view", str(a_recording), "--web", "--port", str(port)))
+
+
+# --- 6. data values a loader must not take -----------------------------------------------------
+
+def _ais(tmp_path: Path, lat: str, lon: str = "-1.09", where: int = 1) -> Path:
+    from datetime import datetime, timedelta
+
+    from workbench.experiments.sea import ais
+
+    t0 = datetime(2016, 1, 12, 13, 0, 0)
+    rows = [f"{(t0 + timedelta(seconds=10 * k)).isoformat(sep=' ')},235,{50.77 + 1e-4 * k},{-1.09 + 1e-4 * k},90.0,5.0"
+            for k in range(6)]
+    parts = rows[where].split(",")
+    parts[2], parts[3] = lat, lon
+    rows[where] = ",".join(parts)
+    path = tmp_path / "ais.csv"
+    path.write_text(",".join(ais.COLUMNS) + "\n" + "\n".join(rows) + "\n")
+    return path
+
+
+@pytest.mark.parametrize("lat, lon, needle", [("95.0", "-1.09", "latitude 95 deg is outside -90..90"),
+                                              ("nan", "-1.09", "non-finite value 'nan'"),
+                                              ("50.7", "200", "longitude 200 deg is outside -180..180"),
+                                              ("50.7", "1e300", "longitude 1e+300 deg is outside")])
+def test_ais_positions_out_of_range_are_one_line(tmp_path, lat, lon, needle):
+    from workbench.experiments.sea import ais
+
+    path = _ais(tmp_path, lat, lon)
+    with pytest.raises(WorkbenchError) as err:
+        ais.read(path)
+    assert needle in str(err.value) and "line 3" in str(err.value) and "\n" not in str(err.value)
+
+
+def test_ais_position_not_available_is_left_out_and_counted(tmp_path):
+    from workbench.errors import DataWarning
+    from workbench.experiments.sea import ais
+
+    with pytest.warns(DataWarning, match="not available"):
+        read = ais.read(_ais(tmp_path, "91", "181"))
+    assert read.repairs == {"ais_no_position": 1} and len(read.tracks[235].t) == 5
+
+
+def test_a_dem_with_a_short_tie_point_is_one_line(tmp_path):
+    import struct
+
+    from workbench.experiments.terrain import dem
+
+    # a little-endian TIFF: one 2x2 float32 strip, pixel scale (33550) 3 doubles, tie point (33922) only 3
+    entries = [(256, 3, 1, 2), (257, 3, 1, 2), (258, 3, 1, 32), (259, 3, 1, 1), (262, 3, 1, 1), (273, 4, 1, 0),
+               (277, 3, 1, 1), (278, 3, 1, 2), (279, 4, 1, 16), (339, 3, 1, 3), (33550, 12, 3, 0), (33922, 12, 3, 0)]
+    ifd_at = 8
+    data_at = ifd_at + 2 + 12 * len(entries) + 4
+    scale_at, tie_at, pixels_at = data_at, data_at + 24, data_at + 48
+    out = bytearray(b"II*\x00" + struct.pack("<I", ifd_at) + struct.pack("<H", len(entries)))
+    for tag, typ, count, value in entries:
+        value = {273: pixels_at, 33550: scale_at, 33922: tie_at}.get(tag, value)
+        packed = struct.pack("<HHI", tag, typ, count)
+        out += packed + (struct.pack("<HH", value, 0) if typ == 3 else struct.pack("<I", value))
+    out += struct.pack("<I", 0)
+    out += struct.pack("<3d", 10.0, 10.0, 0.0) + struct.pack("<3d", 0.0, 0.0, 0.0)
+    out += struct.pack("<4f", 100.0, 101.0, 102.0, 103.0)
+    path = tmp_path / "dem.tif"
+    path.write_bytes(bytes(out))
+    with pytest.raises(WorkbenchError) as err:
+        dem.read_geotiff(path)
+    assert "tie point (33922) 6" in str(err.value) and "got 3 and 3" in str(err.value)
+
+
+def test_an_orientation_in_utf16_is_one_line(tmp_path):
+    from workbench.experiments.terrain import ngi_orientation
+
+    path = tmp_path / ngi_orientation.TEXT
+    path.write_bytes("3324c_2015_1004_05_0182_RGB 1 2 3 0 0 0\n".encode("utf-16"))
+    with pytest.raises(WorkbenchError) as err:
+        ngi_orientation.read(path)
+    assert "cannot read camera_pos_ori.txt" in str(err.value)

@@ -2,8 +2,9 @@
 option of any experiment reaches the code as a non-finite number, an absurd magnitude, or a
 size the machine cannot hold.
 
-* every number finite (``inf`` and ``nan`` are never a setting) and within
-  :data:`MAX_MAGNITUDE` in its own units (UTM coordinates are ~1e7 m; 1e300 is a typo);
+* every number finite (``inf`` and ``nan`` are never a setting), within :data:`MAX_MAGNITUDE`
+  in its own units (UTM coordinates are ~1e7 m; 1e300 is a typo), and zero or at least
+  :data:`MIN_MAGNITUDE` (a denormal time step overflows the step count);
 * whole numbers within :data:`MAX_INT`; ``--seed`` within 64 bits (the recording stores it so),
   ``--runs`` at most :data:`MAX_RUNS`;
 * the memory a run will need (``cfg.memory_bytes()``, each experiment's estimate from what
@@ -24,6 +25,7 @@ from typing import Any
 from workbench.errors import require
 
 MAX_MAGNITUDE = 1e9
+MIN_MAGNITUDE = 1e-100  # a number divided by it stays finite (5e-324 as a time step overflowed)
 MAX_INT = 2**53
 MAX_SEED = 2**63 - 1
 MAX_RUNS = 1_000_000
@@ -58,6 +60,8 @@ def check_values(cfg: Any, flags: Mapping[str, str]) -> None:
             if isinstance(x, float):
                 require(math.isfinite(x), f"{flag} must be a finite number, got {x}")
                 require(abs(x) <= MAX_MAGNITUDE, f"{flag} {x:g} is out of range (at most {MAX_MAGNITUDE:g} in size)")
+                require(x == 0.0 or abs(x) >= MIN_MAGNITUDE,
+                        f"{flag} {x:g} is too small to compute with (0, or at least {MIN_MAGNITUDE:g} in size)")
             elif isinstance(x, int) and f.name != "seed":
                 require(abs(x) <= MAX_INT, f"{flag} {x} is out of range (at most 2**53 in size)")
     seed, runs = getattr(cfg, "seed", 0), getattr(cfg, "runs", 1)

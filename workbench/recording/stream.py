@@ -93,11 +93,16 @@ def write_text_atomic(path: Path, text: str, force: bool = True) -> None:
     """Write ``text`` to a temporary name beside ``path``, then :func:`publish` it (without
     ``force``: only if ``path`` is still free). On any error (a full disk, a signal) the
     temporary file is removed and ``path`` untouched."""
+    write_bytes_atomic(path, text.encode("utf-8"), force)
+
+
+def write_bytes_atomic(path: Path, data: bytes, force: bool = True) -> None:
+    """:func:`write_text_atomic` for bytes (a PNG)."""
     path = Path(path)
     tmp = temporary(path)
     try:
-        with open(tmp, "w", encoding="utf-8") as f:
-            f.write(text)
+        with open(tmp, "wb") as f:
+            f.write(data)
             f.flush()
             os.fsync(f.fileno())
     except OSError as exc:

@@ -9,6 +9,7 @@ The 95 % interval is Student's t on the runs: ``mean +- t(0.975, n-1) sd / sqrt(
 
 from __future__ import annotations
 
+import io
 import json
 import math
 from collections import defaultdict
@@ -20,6 +21,7 @@ import pyarrow.compute as pc
 import pyarrow.parquet as pq
 
 from workbench.errors import WorkbenchError
+from workbench.recording import stream
 
 FALLBACK = ((31, 119, 180), (255, 127, 14), (44, 160, 44), (214, 39, 40), (148, 103, 189), (140, 86, 75),
             (227, 119, 194), (127, 127, 127), (188, 189, 34), (23, 190, 207))
@@ -205,8 +207,10 @@ def plots(table: pa.Table, folder: Path) -> list[Path]:
             ax.legend(fontsize=8, loc="best")
             fig.tight_layout()
             path = folder / f"{metric}_vs_{key}.png"
-            fig.savefig(path)
+            buf = io.BytesIO()
+            fig.savefig(buf, format="png")
             plt.close(fig)
+            stream.write_bytes_atomic(path, buf.getvalue())
             written.append(path)
     return written
 

@@ -86,9 +86,14 @@ def load(path: Path | None) -> dict[int, ShipTrack]:
     return read(path).tracks
 
 
+NOT_AVAILABLE = (91.0, 181.0)
+"""AIS's latitude and longitude for "not available" (ITU-R M.1371)."""
+
+
 def _parse(rec: dict[str, str]) -> tuple:
     return (datetime.fromisoformat(rec["Time"].strip()).timestamp(), int(rec["MMSI"]),
-            csvfile.finite(rec["Latitude_degrees"]), csvfile.finite(rec["Longitude_degrees"]),
+            csvfile.degrees(rec["Latitude_degrees"], 90.0, "latitude", NOT_AVAILABLE[0]),
+            csvfile.degrees(rec["Longitude_degrees"], 180.0, "longitude", NOT_AVAILABLE[1]),
             csvfile.finite(rec["COG_degrees"]), csvfile.finite(rec["SOG_knots"]))
 
 
@@ -100,6 +105,14 @@ def _read(name: str, mtime: int, size: int) -> AisFile:
     a = np.array([r[2:] for r in rows], float)
     t = np.array([r[0] for r in rows], float)
     ids = np.array([r[1] for r in rows], np.int64)
+    blind = np.isnan(a[:, 0]) | np.isnan(a[:, 1])
+    if blind.any():  # AIS's "position not available" (latitude 91, longitude 181)
+        csvfile.count(repairs, "ais_no_position", int(blind.sum()))
+        csvfile.say(path, f"{int(blind.sum())} report(s) say their position is not available (91 / 181): left out")
+        a, t, ids = a[~blind], t[~blind], ids[~blind]
+        numbers = [n for n, b in zip(numbers, blind, strict=True) if not b]
+        if not len(t):
+            raise WorkbenchError(f"malformed ais file {path}: no report has a position")
     order = csvfile.in_order(path, t, numbers, MAX_BACKSTEP, "ais", repairs)
     t, ids, a = t[order] - t.min(), ids[order], a[order]
     by = np.lexsort((t, ids))                      # by ship, then time (stable: file order in a repeat)

@@ -36,6 +36,17 @@ def finite(text: str) -> float:
     return v
 
 
+def degrees(text: str, limit: float, what: str, unavailable: float | None = None) -> float:
+    """A latitude (``limit`` 90) or longitude (180) in degrees: finite and within +-``limit``
+    (a ValueError otherwise); AIS's "not available" value (91, 181) as NaN."""
+    v = finite(text)
+    if unavailable is not None and v == unavailable:
+        return float("nan")
+    if abs(v) > limit:
+        raise ValueError(f"{what} {v:g} deg is outside -{limit:g}..{limit:g}")
+    return v
+
+
 def say(path: Path, what: str) -> None:
     """One warning line about a repair of ``path``."""
     warnings.warn(DataWarning(f"{path.name}: {what}"), stacklevel=3)

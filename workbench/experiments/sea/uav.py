@@ -74,8 +74,11 @@ def read(path: Path | None) -> UavLog:
 
 
 def _parse(rec: dict[str, str]) -> tuple:
-    return (datetime.fromisoformat(rec["time"].strip()).timestamp(), csvfile.finite(rec["latitude"]),
-            csvfile.finite(rec["longitude"]), csvfile.finite(rec["altitude (m)"]))
+    altitude = csvfile.finite(rec["altitude (m)"])
+    if not -500.0 <= altitude <= 1e5:
+        raise ValueError(f"altitude {altitude:g} m is not a flight's")
+    return (datetime.fromisoformat(rec["time"].strip()).timestamp(), csvfile.degrees(rec["latitude"], 90.0, "latitude"),
+            csvfile.degrees(rec["longitude"], 180.0, "longitude"), altitude)
 
 
 @functools.lru_cache(maxsize=4)

@@ -151,8 +151,12 @@ def read_geotiff(path: Path) -> Dem:
     z = z.astype(float)
     z[z < -1e4] = np.nan
     require(bool(np.isfinite(z).any()), f"the DEM {path.name} has no valid heights")
+    require(len(tags[TAG_PIXEL_SCALE]) >= 2 and len(tags[TAG_TIEPOINT]) >= 6,
+            f"{path.name}: the GeoTIFF pixel scale (33550) needs 2 values and the tie point (33922) 6; got "
+            f"{len(tags[TAG_PIXEL_SCALE])} and {len(tags[TAG_TIEPOINT])}")
     sx, sy = tags[TAG_PIXEL_SCALE][:2]
     i, j, _k, x, y, _z = tags[TAG_TIEPOINT][:6]
+    require(all(np.isfinite([sx, sy, i, j, x, y])), f"{path.name}: a GeoTIFF placement value is not finite")
     require(sx > 0 and sy > 0, f"{path.name}: non-positive pixel scale")
     if np.isnan(z).any():
         z = np.where(np.isnan(z), np.nanmean(z), z)

@@ -21,6 +21,8 @@ from pathlib import Path
 
 import numpy as np
 
+from workbench.errors import WorkbenchError
+
 LINEAR = (50.0, 100.0, 200.0)
 ANGULAR = (0.001, 0.003, 0.009)
 SIZES = ("100x100", "200x200", "400x500")
@@ -136,7 +138,12 @@ def plot(path: Path, title: str, xs: list[float], series: dict[str, list[float]]
         for p in pts:
             cv2.circle(img, p, 4, col, -1)
         cv2.putText(img, name, (w - right + 10, top + 20 + 18 * i), cv2.FONT_HERSHEY_SIMPLEX, 0.42, col, 1)
-    cv2.imwrite(str(path), img)
+    ok, encoded = cv2.imencode(".png", img)
+    if not ok:
+        raise WorkbenchError(f"cannot encode the plot {path.name}")
+    from workbench.recording import stream
+
+    stream.write_bytes_atomic(path, encoded.tobytes())
 
 
 def write(rows: list[dict], info: dict, out_dir: Path) -> list[Path]:
