@@ -363,3 +363,17 @@ def test_an_orientation_in_utf16_is_one_line(tmp_path):
     with pytest.raises(WorkbenchError) as err:
         ngi_orientation.read(path)
     assert "cannot read camera_pos_ori.txt" in str(err.value)
+
+
+def test_a_camera_looking_at_the_sky_is_one_line():
+    """An orientation turned upside down: the ray-DEM intersection would be behind the camera."""
+    from workbench.experiments.terrain import camera, dem
+
+    flat = dem.Dem(np.zeros((41, 41)), -2000.0, -2000.0, 100.0, 100.0)
+    k = camera.Intrinsics(100.0, 100.0, 49.5, 49.5, 100, 100)
+    down = camera.rotation(np.zeros(3))
+    up = down @ np.diag([1.0, -1.0, -1.0])  # the optical axis turned to the sky
+    seen = camera.ground_points(flat, k, np.array([0.0, 0.0, 1000.0]), down, *k.pixel_grid(10))
+    assert np.allclose(seen[:, 2], 0.0, atol=0.01)
+    with pytest.raises(WorkbenchError, match="behind the camera"):
+        camera.ground_points(flat, k, np.array([0.0, 0.0, 1000.0]), up, *k.pixel_grid(10))

@@ -391,3 +391,22 @@ def test_a_quirky_real_log_runs_with_its_repairs_said(tmp_path):
     (d / "Robot1_Odometry.dat").write_text("".join(head + bad))
     r = wb("omni", "--scenario", "mrclam", "--data", str(d), "--robot", "1", "--out", str(tmp_path / "b.rrd"))
     assert r.returncode == 2 and "time goes backwards" in r.stderr and len(r.stderr.strip().splitlines()) == 1
+
+
+@pytest.mark.parametrize("kind, row, col, value, needle", [
+    ("Odometry", 2, 1, 1e300, "speed (m/s) 1e+300 is outside"),
+    ("Odometry", 0, 2, -99.0, "turn rate (rad/s) -99 is outside"),
+    ("Measurement", 1, 2, -1.0, "range (m) -1 is outside"),
+    ("Groundtruth", 3, 1, 1e300, "x (m) 1e+300 is outside"),
+])
+def test_corrupted_values_are_one_line_naming_the_line(folder, kind, row, col, value, needle):
+    """A value no ground robot's log has (1e300, a negative range) is an error naming the file's
+    line (the header is 4 lines), not a number read on."""
+    rows = [list(r) for r in {"Odometry": ODOM, "Measurement": MEAS, "Groundtruth": TRUTH}[kind]]
+    rows[row][col] = value
+    write(folder / f"Robot1_{kind}.dat", rows)
+    with pytest.raises(WorkbenchError) as err:
+        mrclam.load(folder, 1)
+    message = str(err.value)
+    assert needle in message and f"Robot1_{kind}.dat: line {HEADER.count(chr(10)) + row + 1}:" in message
+    assert "\n" not in message

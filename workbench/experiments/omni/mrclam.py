@@ -186,10 +186,14 @@ def load(folder: Path, robot: int, t_start: float | None = None, t_end: float | 
     subject_of = _read_barcodes(folder / "Barcodes.dat")
 
     repairs: dict[str, int] = {}
-    odom = _in_order(files["odometry"], _read_table(files["odometry"], 3, repairs=repairs), repairs)
-    meas = _in_order(files["measurement"], _read_table(files["measurement"], 4, int_cols=(1,), repairs=repairs),
-                     repairs)
-    truth = _in_order(files["groundtruth"], _read_table(files["groundtruth"], 4, repairs=repairs), repairs)
+    raw = {"odometry": _read_table(files["odometry"], 3, repairs=repairs),
+           "measurement": _read_table(files["measurement"], 4, int_cols=(1,), repairs=repairs),
+           "groundtruth": _read_table(files["groundtruth"], 4, repairs=repairs)}
+    for kind, table in raw.items():  # on the file's rows, before any reordering: the lines named are the file's
+        _check_ranges(files[kind], table, SANE[kind])
+    odom = _in_order(files["odometry"], raw["odometry"], repairs)
+    meas = _in_order(files["measurement"], raw["measurement"], repairs)
+    truth = _in_order(files["groundtruth"], raw["groundtruth"], repairs)
     gaps = int(np.sum(np.diff(odom[:, 0]) > GAP))
     if gaps:
         repairs["odometry_gaps"] = gaps
@@ -278,6 +282,25 @@ def _data_lines(path: Path) -> list[tuple[int, list[str]]]:
 def _line_of(path: Path, row: int) -> int:
     """The file line number of data row ``row`` (0-based); used only when reporting an error."""
     return _data_lines(path)[row][0]
+
+
+SANE = {  # column -> (what, lowest, highest): a ground robot indoors (MRCLAM's 15 x 8 m hall, 0.2 m/s)
+    "odometry": ((1, "speed (m/s)", -50.0, 50.0), (2, "turn rate (rad/s)", -50.0, 50.0)),
+    "measurement": ((2, "range (m)", 0.0, 1e4), (3, "bearing (rad)", -1e3, 1e3)),
+    "groundtruth": ((1, "x (m)", -1e5, 1e5), (2, "y (m)", -1e5, 1e5), (3, "heading (rad)", -1e3, 1e3)),
+}
+"""Bounds no real log of a ground robot crosses: a value outside is corruption (1e300), said as
+an error naming the file and line, never read on. Angles may be unwrapped (they are wrapped on
+reading); a thousand radians is not an angle any log writes."""
+
+
+def _check_ranges(path: Path, table: np.ndarray, checks: tuple) -> None:
+    for col, what, lo, hi in checks:
+        out = (table[:, col] < lo) | (table[:, col] > hi)
+        if out.any():
+            row = int(np.flatnonzero(out)[0])
+            raise WorkbenchError(f"{path}: line {_line_of(path, row)}: {what} {table[row, col]:g} is outside "
+                                 f"[{lo:g}, {hi:g}] (a corrupted value?)")
 
 
 def _read_table(path: Path, ncols: int, int_cols: tuple[int, ...] = (), repairs: dict | None = None) -> np.ndarray:

@@ -117,8 +117,8 @@ def intersect(dem, origin: np.ndarray, direction: np.ndarray, iterations: int = 
 
     Newton's method on ``f(t) = o_z + t d_z - h(o_xy + t d_xy)``, started on the DEM's mean
     height; rays where it has not converged to a centimetre (steep relief, oblique rays) are
-    bisected between the DEM's highest and lowest heights. Rays leaving the DEM raise a one-line
-    error naming ``what``.
+    bisected between the DEM's highest and lowest heights. Rays leaving the DEM, or meeting it
+    behind the camera (looking up), raise a one-line error naming ``what``.
     """
     o = np.asarray(origin, float)
     d = np.asarray(direction, float)
@@ -147,6 +147,8 @@ def intersect(dem, origin: np.ndarray, direction: np.ndarray, iterations: int = 
             lo, hi = np.where(above, mid, lo), np.where(above, hi, mid)
         t = np.array(t, float)
         t[bad] = 0.5 * (lo + hi)
+    require(bool(np.all(t > 0.0)), f"{what}: rays meet the ground behind the camera, not in front of it "
+                                   "(an orientation looking at the sky, or a camera below the terrain)")
     xy = o[..., :2] + t[..., None] * d[..., :2]
     require(bool(dem.covers(xy[..., 0], xy[..., 1]).all()), f"the DEM does not cover {what}")
     return t
