@@ -118,3 +118,24 @@ def test_spawn_without_a_viewer_carries_on(tmp_path):
     assert r.returncode == 0, r.stderr
     assert r.stderr.count("warning: --spawn") == 1 and "Traceback" not in r.stderr
     assert (tmp_path / "s.rrd").is_file()
+
+
+def test_serve_keeps_serving_until_interrupted(tmp_path):
+    """``--serve``: the recording is written, then the stream stays reachable (the gRPC port
+    accepts connections seconds later) until Ctrl-C, which ends it cleanly (exit 0, one line)."""
+    p = subprocess.Popen([sys.executable, "-m", "workbench", "sea", "--duration", "10", "--serve", "--out",
+                          str(tmp_path / "s.rrd")], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                         start_new_session=True)
+    t0 = time.time()
+    while not (tmp_path / "s.rrd").exists() and time.time() - t0 < 240 and p.poll() is None:
+        time.sleep(0.2)
+    assert (tmp_path / "s.rrd").is_file(), "the run did not finish"
+    time.sleep(3.0)
+    assert p.poll() is None, "it stopped serving by itself"
+    with socket.socket() as s:
+        assert s.connect_ex(("127.0.0.1", 9876)) == 0, "nothing listens on the stream's port"
+    os.killpg(p.pid, signal.SIGINT)
+    _, err = p.communicate(timeout=60)
+    assert p.returncode == 0, err
+    assert "serving the stream at rerun+http://127.0.0.1:9876/proxy" in err and "stopped serving" in err
+    assert "Traceback" not in err
