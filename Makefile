@@ -35,6 +35,7 @@ lint: $(STAMP)
 bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_sea.py
 	$(BIN)/python benchmarks/bench_omni.py
+	$(BIN)/python benchmarks/bench_isam2.py
 	$(BIN)/python benchmarks/bench_sea_images.py
 	$(BIN)/python benchmarks/bench_omni_images.py
 	$(BIN)/python benchmarks/bench_terrain.py

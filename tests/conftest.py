@@ -12,3 +12,13 @@ def paper_cfg() -> SeaConfig:
 @pytest.fixture
 def rng() -> np.random.Generator:
     return np.random.default_rng(1234)
+
+
+SLOW_FIRST = ("test_browser.py", "test_tutorials.py", "test_bounds.py", "test_notebook.py", "test_omni_cli.py")
+"""The files that take minutes, run first: with a file per worker (``-n auto --dist loadfile``) the
+short ones then fill in beside them, instead of one long file running alone at the end."""
+
+
+def pytest_collection_modifyitems(session, config, items):
+    rank = {name: i for i, name in enumerate(SLOW_FIRST)}
+    items.sort(key=lambda item: rank.get(item.path.name, len(SLOW_FIRST)))  # stable: order within a file kept
