@@ -15,6 +15,7 @@ import socket
 import subprocess
 import sys
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -24,7 +25,7 @@ from hypothesis import strategies as st
 from typer.testing import CliRunner
 
 from workbench import api
-from workbench.cli import app
+from workbench.cli import run_cli
 from workbench.errors import WorkbenchError
 from workbench.experiments import all_experiments
 from workbench.recording import stream
@@ -32,8 +33,20 @@ from workbench.recording import stream
 RUNNER = CliRunner()
 
 
-def cli(*args: str):
-    return RUNNER.invoke(app, list(args))
+@dataclass
+class Ran:
+    exit_code: int
+    stdout: str
+    stderr: str
+
+
+def cli(*args: str) -> Ran:
+    """The command line in this process, as ``workbench ARGS`` runs it (:func:`run_cli`)."""
+    with RUNNER.isolation() as (out, err, _):
+        code = run_cli(list(args))
+        sys.stdout.flush()
+        sys.stderr.flush()
+        return Ran(code, out.getvalue().decode(), err.getvalue().decode())
 
 
 def one_line_error(result) -> str:
@@ -394,3 +407,71 @@ def test_isam2_giving_up_is_an_answer_not_a_crash(monkeypatch):
     est = graph.isam2(data, cfg)
     assert est.failures > 0 and np.isfinite(est.pose).all() and np.isnan(est.cov).all()
     assert est.smoothed is not None and np.isfinite(est.smoothed).all()
+
+
+@pytest.mark.parametrize("args, needle", [(("sea", "--lam", "abc"), "Invalid value for '--lam'"),
+                                          (("sea", "--no-such-flag"), "No such option: --no-such-flag"),
+                                          (("nosuchcmd",), "No such command 'nosuchcmd'")])
+def test_command_line_usage_errors_are_one_line(args, needle):
+    """What the argument parser itself refuses: one line (not its boxed usage text), exit 2."""
+    r = subprocess.run([sys.executable, "-m", "workbench", *args], capture_output=True, text=True, timeout=120)
+    assert r.returncode == 2 and r.stderr.count("\n") == 1 and r.stderr.startswith("error: "), r.stderr
+    assert needle in r.stderr and "Traceback" not in r.stderr
+
+
+# --- 7. property-based, end to end: a generated value in a real (small) run ---------------------
+
+SMALL = {  # what sizes a run, pinned small after the generated option (the last of a repeated flag wins)
+    "sea": ("--duration", "5", "--dt", "0.1", "--horizon", "5", "--runs", "2", "--jobs", "1",
+            "--image-size", "320x180"),
+    "omni": ("--duration", "6", "--dt", "0.025", "--runs", "2", "--jobs", "1", "--image-size", "96",
+             "--bearing-rate", "5"),
+    "terrain": ("--size", "100x100", "--levels-linear", "2", "--levels-angular", "1", "--samples", "20",
+                "--runs", "1", "--jobs", "1", "--height", "1500", "--focal", "150", "--dem-spacing", "10",
+                "--texture-scale", "30", "--max-linear", "100", "--max-angular", "0.003", "--relief", "60"),
+}
+RUN = {"cases": 0, "ran": 0, "refused": 0}
+
+
+def _text(opt):
+    if opt.type is int:
+        return INTS.map(str)
+    if opt.type is float:
+        return FLOATS.map(repr)
+    return TEXT.filter(lambda t: "\x00" not in t)
+
+
+@pytest.mark.parametrize("exp", [e for e in all_experiments()], ids=lambda e: e.name)
+def test_generated_values_in_real_runs(exp, tmp_path_factory):
+    """Any one option set to a generated value (the run kept small): exit 0, 2 (one line) or 3
+    (an estimator failed, named); never a traceback or an internal error, never a temporary file
+    left, and metrics that are strict JSON whenever they are written."""
+    options = [o for o in exp.options if o.switch is None and o.type is not Path and o.field != "scenario"]
+
+    @settings(max_examples=25, deadline=None, database=None, derandomize=True,
+              suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
+    @given(data=st.data())
+    def check(data):
+        opt = data.draw(st.sampled_from(options))
+        value = data.draw(_text(opt))
+        d = tmp_path_factory.mktemp("e2e")
+        out, m = d / "r.rrd", d / "m.json"
+        RUN["cases"] += 1
+        if os.environ.get("WORKBENCH_TRACE_CASES"):
+            with open(os.environ["WORKBENCH_TRACE_CASES"], "a") as log:
+                log.write(f"{exp.name} {opt.flags[0]} {value!r}\n")
+        r = cli(exp.name, opt.flags[0], value, *SMALL[exp.name], "--out", str(out), "--metrics", str(m))
+        err = r.stderr.strip()
+        assert r.exit_code in (0, 2, 3), (opt.flags[0], value, r.exit_code, err[-800:])
+        assert "Traceback" not in err and "internal error" not in err, (opt.flags[0], value, err[-800:])
+        assert not [p for p in d.iterdir() if p.name.endswith(".tmp")]
+        if r.exit_code == 2:
+            RUN["refused"] += 1
+            assert err.startswith("error:") and "\n" not in err, (opt.flags[0], value, err)
+            assert not out.exists() and not m.exists()
+        else:
+            RUN["ran"] += 1
+            json.loads(m.read_text(), parse_constant=lambda c: pytest.fail(f"{c} in the metrics"))
+
+    check()
+    print(f"\n{exp.name}: {RUN['cases']} generated runs so far, {RUN['ran']} ran, {RUN['refused']} refused")

@@ -49,11 +49,35 @@ def _on_sigterm(signum, frame) -> None:
 
 def main() -> None:
     """The ``workbench`` command: SIGTERM handled like Ctrl-C (outputs cleaned up, workers
-    ended, one line, no traceback), then the typer app."""
+    ended, one line, no traceback), then :func:`run_cli` on the command line."""
     import signal
 
     signal.signal(signal.SIGTERM, _on_sigterm)
-    app()
+    sys.exit(run_cli())
+
+
+def run_cli(argv: list[str] | None = None) -> int:
+    """The typer app on ``argv`` (default: the process's), its exit code returned; what the
+    argument parser refuses (an unknown flag, a value of the wrong type) is one line on stderr
+    and code 2, not the parser's boxed usage text."""
+    # typer carries its own click: its exceptions are the ones raised here
+    usage_error = typer.BadParameter.__mro__[1]
+    click_exception = usage_error.__mro__[1]
+    try:
+        code = app(args=argv, standalone_mode=False)
+    except usage_error as exc:
+        if not exc.format_message():  # no arguments at all: the help was printed
+            return exc.exit_code
+        where = exc.ctx.command_path if exc.ctx is not None else "workbench"
+        typer.echo(f"error: {exc.format_message()} (see `{where} --help`)", err=True)
+        return 2
+    except click_exception as exc:
+        typer.echo(f"error: {exc.format_message()}", err=True)
+        return exc.exit_code
+    except (typer.Abort, KeyboardInterrupt):
+        typer.echo("interrupted", err=True)
+        return 130
+    return code if isinstance(code, int) else 0
 
 
 def friendly(fn: Callable) -> Callable:
