@@ -475,3 +475,28 @@ def test_generated_values_in_real_runs(exp, tmp_path_factory):
 
     check()
     print(f"\n{exp.name}: {RUN['cases']} generated runs so far, {RUN['ran']} ran, {RUN['refused']} refused")
+
+
+def test_a_recording_cut_short_on_a_full_disk_is_not_published(tmp_path, monkeypatch):
+    """The SDK's file sink writes on without raising when the disk fills: the file it leaves is
+    cut short. Read back before it is published, it is refused and removed; nothing is written."""
+    import rerun as rr
+    import rerun.blueprint as rrb
+
+    path = tmp_path / "r.rrd"
+    original = rr.RecordingStream.disconnect
+
+    def cut(self):
+        original(self)
+        tmp = stream.temporary(path)
+        tmp.write_bytes(tmp.read_bytes()[: tmp.stat().st_size // 2])
+
+    monkeypatch.setattr(rr.RecordingStream, "disconnect", cut)
+    with pytest.raises(WorkbenchError, match="could not be written whole"):
+        with stream.recording(path, "sea", {}, 0, rrb.Blueprint(), force=False) as rec:
+            rec.log("/x", rr.Points3D(np.zeros((1000, 3))), static=True)
+    assert list(tmp_path.iterdir()) == []
+    monkeypatch.undo()
+    with stream.recording(path, "sea", {}, 0, rrb.Blueprint(), force=False) as rec:  # whole: published
+        rec.log("/x", rr.Points3D(np.zeros((1000, 3))), static=True)
+    assert path.is_file() and [p.name for p in tmp_path.iterdir()] == ["r.rrd"]

@@ -244,7 +244,12 @@ def recording(path: Path, experiment: str, config: dict, seed: int,
         finally:
             if not ok:
                 tmp.unlink(missing_ok=True)
-    if not tmp.is_file() or tmp.stat().st_size == 0:
+    from workbench.recording import readback
+
+    try:  # the SDK's file sink does not raise on a full disk: read the file back (~50 ms for 12 MB)
+        readback.check_recording(tmp)
+    except WorkbenchError:
         tmp.unlink(missing_ok=True)
-        raise WorkbenchError(f"the recording {path} could not be written (a full disk?)")
+        raise WorkbenchError(f"the recording {path} could not be written whole (a full disk?); "
+                             "nothing was written") from None
     publish(tmp, path, force)
