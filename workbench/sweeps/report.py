@@ -227,7 +227,6 @@ def recording(table: pa.Table, folder: Path, summary_md: str) -> Path:
     import rerun as rr
     import rerun.blueprint as rrb
 
-    from workbench.recording import stream
 
     experiment = table["experiment"][0].as_py()
     metrics = headline(experiment, list(dict.fromkeys(table["metric"].to_pylist())))
@@ -261,7 +260,6 @@ def recording(table: pa.Table, folder: Path, summary_md: str) -> Path:
 
 def write(folder: Path) -> list[Path]:
     """Rebuild the whole report of a sweep folder from its Parquet files."""
-    from workbench.recording import stream
 
     folder = Path(folder).expanduser()
     table = read(folder)

@@ -36,6 +36,11 @@ def on_grid(est: SlamEstimate, grid: np.ndarray) -> tuple[np.ndarray, np.ndarray
     return pose, cov
 
 
+def smoothed_on_grid(est: SlamEstimate, grid: np.ndarray) -> np.ndarray:
+    """A smoother's whole trajectory as held at the end (``est.smoothed``) at the grid's steps."""
+    return on_grid(SlamEstimate(est.name, est.steps, est.smoothed), grid)[0]
+
+
 def pose_errors(truth: np.ndarray, pose: np.ndarray) -> np.ndarray:
     """``truth - estimate`` per row: x, y (m), heading (rad, wrapped)."""
     e = truth - pose
@@ -101,11 +106,8 @@ def summarise(result: RunResult, cfg: OmniConfig, run: int) -> RunSummary:
         a = umeyama(pose[:, :2], truth[:, :2])
         aligned[name] = pose_errors(truth, a.apply(pose))
         alignment[name] = (a.rotation, float(a.translation[0]), float(a.translation[1]))
-    smoothed = {}
-    for name, est in result.estimates.items():
-        if est.smoothed is not None:
-            final = SlamEstimate(name, est.steps, est.smoothed)
-            smoothed[name] = pose_errors(truth, on_grid(final, grid)[0])
+    smoothed = {name: pose_errors(truth, smoothed_on_grid(est, grid))
+                for name, est in result.estimates.items() if est.smoothed is not None}
     delays = {n: result.estimators[n].delay for n in result.estimates if n in result.estimators}
     crb = {}
     if result.images is None:  # bearings from images have the image stage's noise, not the model's: no bound

@@ -21,8 +21,7 @@ import rerun as rr
 import rerun.blueprint as rrb
 
 from workbench.estimation import metrics
-from workbench.experiments.omni.estimate import SlamEstimate
-from workbench.experiments.omni.evaluate import RunSummary, mc_curves, on_grid
+from workbench.experiments.omni.evaluate import RunSummary, mc_curves, on_grid, smoothed_on_grid
 from workbench.experiments.omni.run import RunResult
 from workbench.recording import draw
 from workbench.recording import layout as views
@@ -195,7 +194,7 @@ def record_run(rec: rr.RecordingStream, first: RunResult, zero: RunSummary) -> N
         if est.smoothed is not None:
             # a smoother's whole trajectory as it holds it at the end, paler and thinner than
             # the path of what it knew at each step
-            final = on_grid(SlamEstimate(name, est.steps, est.smoothed), grid)[0]
+            final = smoothed_on_grid(est, grid)
             pale = tuple(int(c + (255 - c) * 0.55) for c in rgb[:3])
             draw.track(rec, f"{base}/smoothed", final[:, :2], pale, -0.75 * x)
         draw.covariance_ellipses(rec, f"{base}/pose_ellipse", TL, t, pose[:, :2], cov[:, :2, :2], rgb)

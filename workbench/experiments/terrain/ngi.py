@@ -99,7 +99,6 @@ def load(cfg: TerrainConfig) -> Scene:
     orient = {f: _pose(v) for f, v in ngi_orientation.orientation(root, tuple(cfg.pair)).items()}
     dem = read_geotiff(root / "dem.tif")
     k = cam.intrinsics(w, h)
-    fx = k.fx
     position = np.stack([orient[f][0] for f in cfg.pair])
     angles = np.stack([camera.angles_from_rotation(orient[f][1]) for f in cfg.pair])
     images = np.stack([_frame(root / f"{PREFIX}{FRAME_FILES[f]}_RGB.tif", (w, h), cam.size) for f in cfg.pair])
@@ -109,5 +108,5 @@ def load(cfg: TerrainConfig) -> Scene:
                              what=f"frame {cfg.pair[i]}'s footprint")
     interval = float(np.linalg.norm(position[1, :2] - position[0, :2]) / cfg.speed)
     depth = position[:, 2].mean() - dem.mean_height
-    label = f"ngi {cfg.pair[0]}/{cfg.pair[1]} at {w}x{h}, ~{depth / fx:.0f} m pixels"
+    label = f"ngi {cfg.pair[0]}/{cfg.pair[1]} at {w}x{h}, ~{depth / k.fx:.0f} m pixels"
     return Scene(label, dem, k, position, angles, images, interval)
