@@ -14,7 +14,8 @@ def rng() -> np.random.Generator:
     return np.random.default_rng(1234)
 
 
-SLOW_FIRST = ("test_browser.py", "test_tutorials.py", "test_bounds.py", "test_notebook.py", "test_omni_cli.py")
+SLOW_FIRST = ("test_browser.py", "test_tutorials.py", "test_bounds.py", "test_notebook.py", "test_omni_cli.py",
+              "test_terrain_measure.py")
 """The files that take minutes, run first: with a file per worker (``-n auto --dist loadfile``) the
 short ones then fill in beside them, instead of one long file running alone at the end."""
 

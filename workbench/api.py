@@ -80,7 +80,7 @@ def run(experiment: str | Experiment, scenario: str | None = None, *, config: An
     process, or a running viewer at a ``rerun+http://...`` URL: run 0 as soon as it is computed,
     the curves over runs and the table when the Monte Carlo runs are done (the saved recording is
     the same either way: it is written from the same results, whatever is streamed).
-    ``extras``: the experiment's extra options (e.g. omni's ``export_tum``). ``progress(done,
+    ``extras``: the experiment's extra options (e.g. omni's ``export_tum``, terrain's ``model``). ``progress(done,
     total)`` is called as runs finish.
     """
     from workbench.recording import stream
@@ -99,6 +99,7 @@ def run(experiment: str | Experiment, scenario: str | None = None, *, config: An
     metrics_path = stream.check_plain_output(Path(metrics), force, "metrics file") if metrics is not None else None
     if out_path is not None and metrics_path is not None and out_path.resolve() == metrics_path.resolve():
         raise WorkbenchError(f"--metrics and --out name the same file ({out_path}): one would replace the other")
+    extras["recording"] = out_path  # exports that sit beside the recording (terrain's model folder)
     exp.check_extras(cfg, extras, force)
     report = progress or (lambda done, total: None)
     t0 = time.perf_counter()
@@ -149,6 +150,21 @@ def run(experiment: str | Experiment, scenario: str | None = None, *, config: An
     for name, why in failures.items():
         warnings.warn(f"estimator {name!r} failed: {why}", RuntimeWarning, stacklevel=2)
     return Result(exp.name, cfg, stats, table, first, summaries, out_path, metrics_path, failures, lines, live)
+
+
+def measure(model: str | Path, points: Iterable[str] = (), lines: Iterable[str] = (),
+            polygons: Iterable[str] = ()) -> list:
+    """Measure in a terrain run's halftone model folder (``workbench measure``): ``points``
+    ``"u,v"``, ``lines`` ``"u1,v1:u2,v2"``, ``polygons`` ``"u1,v1:u2,v2:u3,v3..."`` (image II's
+    pixels); each a :class:`~workbench.experiments.terrain.measure.Measurement` with values and
+    standard deviations. Bad input raises :class:`WorkbenchError` (one line)."""
+    from workbench.experiments.terrain import measure as ms
+    from workbench.experiments.terrain import model as tm
+
+    points, lines, polygons = list(points), list(lines), list(polygons)
+    if not (points or lines or polygons):
+        raise WorkbenchError("nothing to measure: give --point u,v, --line u1,v1:u2,v2 or --polygon u1,v1:u2,v2:u3,v3")
+    return ms.measure(tm.load(model), points, lines, polygons)
 
 
 def summarise_run(experiment: str, cfg: Any, estimators: list, run: int) -> Any:

@@ -16,6 +16,7 @@ for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 
 import inspect
+import json
 import shutil
 import subprocess
 import sys
@@ -225,6 +226,27 @@ app.command("info")(friendly(recording_commands.info))
 app.command("replay")(friendly(recording_commands.replay))
 app.command("screenshot")(friendly(recording_commands.screenshot))
 app.command("compare")(friendly(recording_commands.compare))
+
+
+@app.command("measure")
+@friendly
+def measure(model: str = typer.Argument(..., help="A halftone model folder (a terrain run's <out>.model)."),
+            point: list[str] = typer.Option([], "--point", help="u,v: image II's pixel -> ground X, Y, H and the "
+                                            "terrain's slope there (repeatable)."),
+            line: list[str] = typer.Option([], "--line", help="u1,v1:u2,v2 -> distance, slope distance, height "
+                                           "difference, slope (repeatable)."),
+            polygon: list[str] = typer.Option([], "--polygon", help="u1,v1:u2,v2:u3,v3... -> area, perimeter, mean "
+                                              "height (repeatable)."),
+            as_json: bool = typer.Option(False, "--json", help="Print JSON instead of lines.")) -> None:
+    """Measure in a terrain run's halftone model: ground coordinates, heights, distances, slopes and
+    areas, each with its standard deviation from the refined orientation's covariance."""
+    from workbench import api
+
+    found = api.measure(model, points=point, lines=line, polygons=polygon)
+    if as_json:
+        typer.echo(json.dumps([m.to_json() for m in found], indent=1))
+    else:
+        typer.echo("\n".join(m.text() for m in found))
 
 
 @app.command("list")

@@ -413,12 +413,30 @@ def adjust(cfg: TerrainConfig, scene: Scene, position: np.ndarray, angles: np.nd
                     "error_after": graph.error(result), "sigmas": (float(sigmas[0]), float(sigmas[1])),
                     "passes": history, "outliers": int((~keep).sum()), "iterations": iterations,
                     "landmarks": np.array([result.atPoint3(L(j)) for j in idx]) + origin}
-    position_cov = None
+    position_cov = pose_cov = None
     try:
         marg = gtsam.Marginals(graph, result)
         extras["covariance"] = np.stack([marg.marginalCovariance(X(i)) for i in range(2)])
-        r2 = out_rot[1]  # Pose3's tangent is (rotation, translation) in the body frame: to world
-        position_cov = r2 @ extras["covariance"][1][3:, 3:] @ r2.T
+        pose_cov = tangent_to_pose(out_rot[1]) @ extras["covariance"][1] @ tangent_to_pose(out_rot[1]).T
+        position_cov = pose_cov[:3, :3]
     except RuntimeError:
         extras["covariance"] = None
-    return Estimate(out_pos, camera.angles_from_rotation(out_rot), 0.0, extras, position_cov)
+    return Estimate(out_pos, camera.angles_from_rotation(out_rot), 0.0, extras, position_cov, pose_cov)
+
+
+def tangent_to_pose(r_wc: np.ndarray, step: float = 1e-6) -> np.ndarray:
+    """``T (6, 6)``: (position, angles) from Pose3's tangent ``(omega, v)`` at ``R_wc`` to first
+    order (GTSAM retracts ``R Exp(omega)``, ``t + R v``): position ``R v``; angles the derivative
+    of :func:`camera.angles_from_rotation` along ``R Exp(omega)`` (central differences)."""
+    import gtsam
+
+    t = np.zeros((6, 6))
+    t[:3, 3:] = r_wc
+    rot = gtsam.Rot3(r_wc)
+    for i in range(3):
+        w = np.zeros(3)
+        w[i] = step
+        a_plus = camera.angles_from_rotation(rot.compose(gtsam.Rot3.Expmap(w)).matrix())
+        a_minus = camera.angles_from_rotation(rot.compose(gtsam.Rot3.Expmap(-w)).matrix())
+        t[3:, i] = (a_plus - a_minus) / (2.0 * step)
+    return t

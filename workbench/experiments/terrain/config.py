@@ -204,3 +204,14 @@ OPTIONS: tuple[Option, ...] = (
     Option("pair", "ngi: the two frames, image I first.", str, parse=split_list),
 )
 """The terrain experiment's own command-line options (the shared ones are the CLI's)."""
+
+
+EXTRAS: tuple[Option, ...] = (
+    Option("model", "Write run 0's halftone model (orthophoto, ground X/Y/H and their sigmas as GeoTIFFs, the "
+           "textured mesh; `workbench measure FOLDER` measures in it) into this folder [beside the recording, "
+           "<out>.model].", Path),
+    Option("model_files", "Write the halftone model's files (--no-model-files: only the recording).", bool,
+           switch="--model-files/--no-model-files"),
+    Option("model_from", "The estimator whose orientation builds the model [the first of gtsam-ba, "
+           "recurrent-search-iterated, recurrent-search-refined with a covariance].", str),
+)

@@ -5,7 +5,10 @@ returns ``position (2, 3)`` (projection centres, metres, in the scene's world fr
 y north, z up) and ``angles (2, 3)`` (psi, theta, gamma in radians, the convention of
 :func:`~workbench.experiments.terrain.camera.rotation`), row 0 for image I and row 1 for image
 II (the one scored). ``position_cov (3, 3)``: image II's position covariance (m^2, symmetric
-positive semi-definite), where the estimator has one (it gives the NEES).
+positive semi-definite), where the estimator has one (it gives the NEES). ``pose_cov (6, 6)``:
+image II's whole orientation covariance, position then angles in the order of ``position`` and
+``angles`` (m, rad), where the estimator has one: the halftone model's measurements
+(:mod:`.measure`) propagate it to their standard deviations.
 """
 
 from __future__ import annotations
@@ -24,6 +27,7 @@ class Estimate:
     seconds: float = 0.0                    # set by the workbench
     extras: dict = field(default_factory=dict)
     position_cov: np.ndarray | None = None  # (3, 3) image II's position covariance, m^2
+    pose_cov: np.ndarray | None = None      # (6, 6) image II's position and angles covariance
 
 
 def check(est: Estimate, data, cfg, estimator) -> Estimate:
@@ -45,4 +49,9 @@ def check(est: Estimate, data, cfg, estimator) -> Estimate:
         if np.isfinite(cov).all():
             psd(cov, "position_cov", None, estimator)
         est.position_cov = cov
+    if est.pose_cov is not None:
+        cov = as_array(est.pose_cov, "pose_cov", (6, 6))
+        if np.isfinite(cov).all():
+            psd(cov, "pose_cov", None, estimator)
+        est.pose_cov = cov
     return est

@@ -40,9 +40,10 @@ def _corrected(data, state, cov=None, **extras) -> Estimate:
 
     m = nav.error_map(data.mode, data.scene.interval)
     pos, ang = nav.corrected(data.measured.position, data.measured.angles, m @ state)
-    m2 = m[1, :3]  # image II's position errors from the state
+    m2 = m[1]  # image II's pose errors (position, angles) from the state
+    pose_cov = None if cov is None else m2 @ cov @ m2.T
     return Estimate(pos, ang, extras={"state": state, **extras},
-                    position_cov=None if cov is None else m2 @ cov @ m2.T)
+                    position_cov=None if pose_cov is None else pose_cov[:3, :3], pose_cov=pose_cov)
 
 
 def centre(data, cfg: TerrainConfig, ctx: RunContext) -> Estimate:

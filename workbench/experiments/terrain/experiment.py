@@ -1,12 +1,16 @@
 """The terrain experiment (paper 001) as the workbench sees it: the one object the CLI, the
 demo, the Python API and the sweeps use. The flow goes to this package's role modules by
-name; here are its declarations (the paper's grid is the sweep preset ``paper-grid``)."""
+name; here are its declarations (the paper's grid is the sweep preset ``paper-grid``) and the halftone
+model's export (``--model``, :mod:`.model`)."""
 
 from __future__ import annotations
 
+from pathlib import Path
+
+from workbench.errors import require
 from workbench.experiments.contract import Demo, Experiment, Preset
 from workbench.experiments.terrain import grid
-from workbench.experiments.terrain.config import OPTIONS, SCENARIOS, TerrainConfig
+from workbench.experiments.terrain.config import EXTRAS, OPTIONS, SCENARIOS, TerrainConfig
 from workbench.experiments.terrain.estimate import Estimate
 from workbench.experiments.terrain.scenario import TerrainData
 
@@ -18,6 +22,7 @@ class Terrain(Experiment):
     config_type = TerrainConfig
     scenarios = SCENARIOS
     options = OPTIONS
+    extras = EXTRAS
     required = ("navigation",)
     data_type = TerrainData
     estimate_type = Estimate
@@ -40,6 +45,45 @@ class Terrain(Experiment):
                    "its spread 3-10 % (100x100), 2-8 % (200x200)",
                    "dx_fraction": "paper (Fig. 3): mean |dX| at most 40-60 % of the maximum; spread 6-16 % "
                    "(100x100), 4-13 % (200x200)"}
+
+
+    def check_extras(self, cfg: TerrainConfig, extras: dict, force: bool) -> None:
+        from workbench.experiments.terrain import model
+        from workbench.recording import stream
+
+        name = extras.get("model_from")
+        if name is not None:
+            chosen = [spec.split("=")[0] for spec in cfg.estimators]
+            require(name in chosen, f"--model-from {name}: not among this run's estimators ({', '.join(chosen)})")
+        folder = model_folder(extras)
+        if folder is None:
+            return
+        require(not folder.exists() or folder.is_dir(), f"--model {folder}: not a folder")
+        for n in (*model.FILES, "model.json"):
+            stream.check_plain_output(folder / n, force, "halftone model file")
+
+    def export(self, first, stats: dict, extras: dict, force: bool) -> list[str]:
+        """``model``: run 0's halftone model as files (:func:`.model.write`)."""
+        folder = model_folder(extras)
+        if folder is None:
+            return []
+        from workbench.experiments.terrain import model
+
+        m = model.from_run(first, extras.get("model_from"))
+        model.write(folder, m, first.scene, force)
+        stats["model"] = {"folder": str(folder), "model_id": m.model_id, "estimator": m.estimator}
+        return [f"model:     {folder}/ (from {m.estimator}; `workbench measure {folder} --point U,V`)"]
+
+
+def model_folder(extras: dict) -> Path | None:
+    """Where the halftone model goes: ``--model``, else beside the recording (``<out>.model``);
+    nowhere with ``--no-model-files`` or without either."""
+    if extras.get("model_files") is False:
+        return None
+    if extras.get("model") is not None:
+        return Path(extras["model"]).expanduser()
+    rec = extras.get("recording")
+    return Path(rec).with_suffix(".model") if rec is not None else None
 
 
 EXPERIMENT = Terrain()

@@ -109,4 +109,4 @@ def load(cfg: TerrainConfig) -> Scene:
     interval = float(np.linalg.norm(position[1, :2] - position[0, :2]) / cfg.speed)
     depth = position[:, 2].mean() - dem.mean_height
     label = f"ngi {cfg.pair[0]}/{cfg.pair[1]} at {w}x{h}, ~{depth / k.fx:.0f} m pixels"
-    return Scene(label, dem, k, position, angles, images, interval)
+    return Scene(label, dem, k, position, angles, images, interval, extras={"dem_path": str(root / "dem.tif")})

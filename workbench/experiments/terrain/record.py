@@ -34,6 +34,7 @@ import numpy as np
 import rerun as rr
 import rerun.blueprint as rrb
 
+from workbench.errors import WorkbenchError
 from workbench.estimation.angles import wrap
 from workbench.experiments.terrain import camera, halftone, navigation
 from workbench.experiments.terrain.camera import Intrinsics
@@ -513,9 +514,66 @@ def record_run(rec: rr.RecordingStream, first: RunResult, zero: RunSummary) -> N
     for name, err in zero.ground_maps.items():
         _error_map(rec, name, err)
     _orthophoto(rec, sc, first.estimates[_best(list(first.estimates))], bounds)
+    _measurements(rec, first, origin)
+
+
+MEASURE_RGB = (255, 235, 60)
+
+
+def _measurements(rec: rr.RecordingStream, first: RunResult, origin: np.ndarray) -> None:
+    """A few measurements in the run's halftone model (:func:`.measure.examples`): on image II
+    (pixels) and on the model's surface in 3D (ground points), labelled value +- sigma."""
+    from workbench.experiments.terrain import measure, model
+
+    try:
+        m = model.from_run(first)
+        found = measure.examples(m)
+    except WorkbenchError:
+        return  # a model the DEM does not hold: the recording goes without its measurements
+    for i, ms in enumerate(found):
+        label = f"{ms.kind}: " + ", ".join(q.text() for q in ms.quantities[:2])
+        px = np.array(ms.pixels) + 0.5    # Rerun's pixel centres are at half-integers
+        g = ms.ground - origin
+        if ms.kind == "point":
+            rec.log(f"/world/cameras/truth/II/measurements/{i}", rr.Points2D(px, radii=[_ui(5)], colors=[MEASURE_RGB],
+                                                                             labels=[label]), static=True)
+            rec.log(f"/world/halftone/measurements/{i}", rr.Points3D(g, radii=[_ui(6)], colors=[MEASURE_RGB],
+                                                                     labels=[label]), static=True)
+            continue
+        closed = ms.kind == "polygon"
+        px = np.vstack([px, px[:1]]) if closed else px
+        g = np.vstack([g, g[:1]]) if closed else g
+        rec.log(f"/world/cameras/truth/II/measurements/{i}", rr.LineStrips2D([px], radii=[_ui(2)],
+                                                                             colors=[MEASURE_RGB], labels=[label]),
+                static=True)
+        rec.log(f"/world/halftone/measurements/{i}", rr.LineStrips3D([g], radii=[_ui(3)], colors=[MEASURE_RGB],
+                                                                     labels=[label]), static=True)
+
+
+def measurements_markdown(first: RunResult) -> str:
+    """The recorded measurements as a table, beside what the same pixels measure under the
+    true orientation (the scene's truth; for NGI its published orientation)."""
+    from workbench.experiments.terrain import measure, model
+
+    try:
+        m = model.from_run(first)
+        found = measure.examples(m)
+        sc = first.scene
+        truth = measure.examples(model.Model("truth", sc.dem, sc.k, sc.position[1], sc.angles[1], None))
+    except WorkbenchError:
+        return ""
+    rows = ["", f"**halftone model** (image II under {m.estimator}'s orientation, model {m.model_id}; "
+            "`workbench measure` reads its files): a few measurements, +- the orientation covariance's sigma",
+            "", "| measurement | value | sigma | true orientation | error / sigma |", "|---|---|---|---|---|"]
+    for a, b in zip(found, truth, strict=True):
+        for q, r in zip(a.quantities, b.quantities, strict=True):
+            z = f"{(q.value - r.value) / q.sigma:+.2f}" if q.sigma else "-"
+            sig = f"{q.sigma:.3g}" if q.sigma is not None else "-"
+            rows.append(f"| {a.kind} {q.name} ({q.unit}) | {q.value:.6g} | {sig} | {r.value:.6g} | {z} |")
+    return "\n".join(rows) + "\n"
 
 
 def record_runs(rec: rr.RecordingStream, first: RunResult, runs: list[RunSummary], table_md: str) -> None:
     """Log the results table (the Monte Carlo statistics) and how to read the recording."""
-    text = narrow_tables(table_md) + "\n" + legend(first, local_origin(first.scene))
+    text = narrow_tables(table_md) + "\n" + legend(first, local_origin(first.scene)) + measurements_markdown(first)
     rec.log("/summary", rr.TextDocument(text, media_type=rr.MediaType.MARKDOWN), static=True)
