@@ -194,5 +194,15 @@ def examples(model: Model) -> list[Measurement]:
     def px(a: float, b: float) -> tuple[float, float]:
         return (round(a * w, 1), round(b * h, 1))
 
-    return [point(model, px(0.5, 0.5)), line(model, px(0.15, 0.2), px(0.85, 0.8)),
-            polygon(model, [px(0.3, 0.3), px(0.7, 0.35), px(0.65, 0.7), px(0.35, 0.65)])]
+    return [point(model, px(0.25, 0.3)), line(model, px(0.1, 0.6), px(0.6, 0.9)),
+            polygon(model, [px(0.55, 0.15), px(0.85, 0.2), px(0.8, 0.5), px(0.6, 0.45)])]
+
+
+def edge_pixels(pixels: list[tuple[float, float]], closed: bool, per_edge: int = 40) -> np.ndarray:
+    """Pixels along a line's or a polygon's edges, ``per_edge`` a side (to draw them on the
+    terrain rather than as chords through it)."""
+    p = np.array(pixels, float)
+    ends = np.vstack([p, p[:1]]) if closed else p
+    t = np.linspace(0.0, 1.0, per_edge, endpoint=False)[:, None]
+    out = [a + t * (b - a) for a, b in zip(ends[:-1], ends[1:], strict=True)]
+    return np.vstack([*out, ends[-1:]])

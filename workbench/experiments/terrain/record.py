@@ -41,6 +41,7 @@ from workbench.experiments.terrain.camera import Intrinsics
 from workbench.experiments.terrain.estimate import Estimate
 from workbench.experiments.terrain.estimators import ITERATED, REFINED, SEARCH, TABLE
 from workbench.experiments.terrain.evaluate import RunSummary
+from workbench.experiments.terrain.model import PREFERRED
 from workbench.experiments.terrain.run import RunResult
 from workbench.experiments.terrain.scenario import SUN, Scene
 
@@ -91,7 +92,7 @@ def blueprint(names: list[str]) -> rrb.Blueprint:
     scene = rrb.Spatial3DView(origin="/world", contents=["+ $origin/**", "- $origin/halftone/**"],
                               name="scene (m, z up): DEM, frusta, tie points, hypotheses", background=BACKGROUND,
                               overrides={**cloud, "/world/search/markers": quiet, "/world/search/winner": quiet})
-    best = _best(names)
+    best = next((n for n in PREFERRED if n in names), _best(names))  # the estimator the model files are built from
     model = rrb.Spatial3DView(
         origin="/world", contents=["+ $origin/halftone/**", "+ $origin/ba/tie_points"],
         name=f"halftone model ({best}; others hidden)", background=BACKGROUND,
@@ -104,7 +105,7 @@ def blueprint(names: list[str]) -> rrb.Blueprint:
                                     plot_legend=rrb.Corner2D.RightTop, axis_x=rrb.TimeAxis(view_range=whole))
     images = rrb.Vertical(
         rrb.Spatial2DView(origin="/world/cameras/truth/I", name="image I + tie points"),
-        rrb.Spatial2DView(origin="/world/cameras/truth/II", name="image II + tie points"),
+        rrb.Spatial2DView(origin="/world/cameras/truth/II", name="image II + tie points, measurements"),
         name="images")
     errors = rrb.Grid(*[rrb.Spatial2DView(origin=f"/errors/{n}", name=n) for n in names], name="ground error (m)")
     return rrb.Blueprint(
@@ -522,7 +523,8 @@ MEASURE_RGB = (255, 235, 60)
 
 def _measurements(rec: rr.RecordingStream, first: RunResult, origin: np.ndarray) -> None:
     """A few measurements in the run's halftone model (:func:`.measure.examples`): on image II
-    (pixels) and on the model's surface in 3D (ground points), labelled value +- sigma."""
+    (pixels) and on the model's surface in 3D (the edges' ground points, along the terrain,
+    lifted a little above it to stay in sight), labelled value +- sigma."""
     from workbench.experiments.terrain import measure, model
 
     try:
@@ -530,24 +532,26 @@ def _measurements(rec: rr.RecordingStream, first: RunResult, origin: np.ndarray)
         found = measure.examples(m)
     except WorkbenchError:
         return  # a model the DEM does not hold: the recording goes without its measurements
+    lift = np.array([0.0, 0.0, 0.002 * (m.position[2] - m.dem.mean_height)])
     for i, ms in enumerate(found):
-        label = f"{ms.kind}: " + ", ".join(q.text() for q in ms.quantities[:2])
-        px = np.array(ms.pixels) + 0.5    # Rerun's pixel centres are at half-integers
-        g = ms.ground - origin
+        q = ms.quantities[{"point": 2, "line": 0, "polygon": 0}[ms.kind]]
+        label = q.text().replace(" +- ", " ± ").replace("m^2", "m²")
         if ms.kind == "point":
-            rec.log(f"/world/cameras/truth/II/measurements/{i}", rr.Points2D(px, radii=[_ui(5)], colors=[MEASURE_RGB],
-                                                                             labels=[label]), static=True)
-            rec.log(f"/world/halftone/measurements/{i}", rr.Points3D(g, radii=[_ui(6)], colors=[MEASURE_RGB],
-                                                                     labels=[label]), static=True)
+            rec.log(f"/world/cameras/truth/II/measurements/{i}",
+                    rr.Points2D(np.array(ms.pixels) + 0.5, radii=[_ui(5)], colors=[MEASURE_RGB], labels=[label]),
+                    static=True)
+            rec.log(f"/world/halftone/measurements/{i}", rr.Points3D(ms.ground - origin + lift, radii=[_ui(6)],
+                                                                     colors=[MEASURE_RGB], labels=[label]),
+                    static=True)
             continue
         closed = ms.kind == "polygon"
-        px = np.vstack([px, px[:1]]) if closed else px
-        g = np.vstack([g, g[:1]]) if closed else g
-        rec.log(f"/world/cameras/truth/II/measurements/{i}", rr.LineStrips2D([px], radii=[_ui(2)],
-                                                                             colors=[MEASURE_RGB], labels=[label]),
-                static=True)
-        rec.log(f"/world/halftone/measurements/{i}", rr.LineStrips3D([g], radii=[_ui(3)], colors=[MEASURE_RGB],
-                                                                     labels=[label]), static=True)
+        px = np.array(ms.pixels + ms.pixels[:1] if closed else ms.pixels) + 0.5  # Rerun's pixel centres: +0.5
+        along = measure.edge_pixels(ms.pixels, closed)
+        g = m.ground(along[:, 0], along[:, 1]) - origin + lift
+        rec.log(f"/world/cameras/truth/II/measurements/{i}",
+                rr.LineStrips2D([px], radii=[_ui(2)], colors=[MEASURE_RGB], labels=[label]), static=True)
+        rec.log(f"/world/halftone/measurements/{i}",
+                rr.LineStrips3D([g], radii=[_ui(3)], colors=[MEASURE_RGB], labels=[label]), static=True)
 
 
 def measurements_markdown(first: RunResult) -> str:
