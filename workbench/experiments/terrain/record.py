@@ -38,14 +38,14 @@ from workbench.estimation.angles import wrap
 from workbench.experiments.terrain import camera, halftone, navigation
 from workbench.experiments.terrain.camera import Intrinsics
 from workbench.experiments.terrain.estimate import Estimate
-from workbench.experiments.terrain.estimators import ITERATED, REFINED, SEARCH, TABLE
+from workbench.experiments.terrain.estimators import ITERATED, POSTERIOR, REFINED, SEARCH, TABLE
 from workbench.experiments.terrain.evaluate import RunSummary
 from workbench.experiments.terrain.run import RunResult
 from workbench.experiments.terrain.scenario import SUN, Scene
 
 TRUTH = (240, 240, 240)
 COLOUR_NAMES = {"truth": "white", "navigation": "red", SEARCH: "orange", REFINED: "green", ITERATED: "cyan",
-                "gtsam-ba": "violet"}
+                POSTERIOR: "blue", "gtsam-ba": "violet"}
 BACKGROUND = (24, 28, 34)           # the 3D views' background: the palette reads on it in either theme
 ERROR_COLORMAP = "Viridis"
 TIMELINES = ("hypothesis", "search")
@@ -72,7 +72,7 @@ def colour_name(first: RunResult, name: str) -> str:
 
 def _best(names: list[str]) -> str:
     """The estimator whose halftone model and orthophoto are shown by default."""
-    return next((n for n in (ITERATED, REFINED, "gtsam-ba", SEARCH) if n in names), "navigation")
+    return next((n for n in (POSTERIOR, ITERATED, REFINED, "gtsam-ba", SEARCH) if n in names), "navigation")
 
 
 def _accumulate() -> rrb.VisibleTimeRanges:
