@@ -22,7 +22,7 @@ the cell: the winner only says where to start. Two steps:
    spatial heteroscedasticity-and-autocorrelation-consistent (HAC) sum over lags of the
    scores' cross-covariances, with Bartlett weights (the product of two triangular kernels:
    positive semi-definite, Newey and West 1987) and the bandwidth of each image axis by
-   Andrews' (1991, eq. 6.4) plug-in rule for the Bartlett kernel from the residuals' lag-one
+   Andrews' (1991, section 6) plug-in rule for the Bartlett kernel from the residuals' lag-one
    autocorrelation ``rho`` along that axis, ``1.1447 (4 rho^2 / ((1 - rho)^2 (1 + rho)^2) T)^(1/3)``
    with ``T`` nodes along it. Their ratio in the posterior's metric,
    ``kappa = tr(Gamma J Gamma) / tr(Gamma H Gamma)`` (``Gamma = (G^-1 + H)^-1``), is the node
@@ -43,10 +43,12 @@ the iterated filter) is its mean squared error under this posterior,
 the estimate and what the data and the navigation system say.
 
 Not a mixture over hypotheses weighted by ``exp(-I_pq / 2)``: with ``I_pq`` a sum over
-correlated nodes it collapses onto the winner, and even tempered by ``kappa`` it still does
-(the runner-up's functional is hundreds to thousands above the winner's, ``kappa`` 0.2-2), and
-each hypothesis's state is a one-step linearisation a third of a cell off (what made the
-refinement's ANEES 15.7). The posterior's spread is what is left of the cell choice.
+correlated nodes it collapses onto the winner, and tempered by the measured ``kappa`` it still
+does: the runner-up's functional is 5-1560 above the winner's (``kappa`` 0.15-1.9), so the weight
+left off the winner is at most 3 % (synthetic 200 x 200, seeds 4, 7, 11, 5 runs in each mode;
+both ngi pairs in both modes, 3 runs each), and each hypothesis's state is a one-step
+linearisation a third of a cell off (what made the refinement's ANEES 15.7). The posterior's
+spread is what is left of the cell choice.
 """
 
 from __future__ import annotations
@@ -102,7 +104,7 @@ def lag_one(field: np.ndarray, axis: int) -> float:
 
 
 def andrews_bandwidth(rho: float, length: int) -> float:
-    """Andrews' (1991, eq. 6.4) AR(1) plug-in bandwidth of the Bartlett kernel for a series of
+    """Andrews' (1991, section 6) AR(1) plug-in bandwidth of the Bartlett kernel for a series of
     ``length`` with lag-one autocorrelation ``rho``; at least 1 (lag 0 alone)."""
     rho = float(np.clip(rho, -0.97, 0.97))
     alpha = 4.0 * rho ** 2 / ((1.0 - rho) ** 2 * (1.0 + rho) ** 2)
