@@ -145,7 +145,7 @@ def _rgb(image: np.ndarray) -> np.ndarray:
 
 def _nice_ceiling(x: float) -> float:
     """The smallest of 1, 1.2, 1.5, 2, 2.5, 3, 4, 5, 6, 8 times a power of ten at or above ``x``
-    (a legend's top: at most 25 % above the largest value)."""
+    (a legend's top: at most a third above the largest value, the widest step of ``NICE``)."""
     if not np.isfinite(x) or x <= 0:
         return 1.0
     p = 10.0 ** np.floor(np.log10(x))
