@@ -33,7 +33,8 @@ def recorded(tmp_path_factory):
 
 def test_recording_has_the_scene_the_search_and_every_estimator(recorded):
     _, out, stats = recorded
-    names = ("navigation", "recurrent-search", "recurrent-search-refined", "recurrent-search-iterated", "gtsam-ba")
+    names = ("navigation", "recurrent-search", "recurrent-search-refined", "recurrent-search-iterated",
+             "recurrent-search-posterior", "gtsam-ba")
     assert set(stats["estimators"]) == set(names)
     assert stats["hypotheses"] == 27 and stats["nodes"] > 1000
     rows = readback.row_counts(out)

@@ -1,5 +1,7 @@
 """Terrain experiment: the camera model (1) both ways, the DEM, the error modes, the filter bank
-(2)-(4) literal against the batch form, and noise-free searches that land on the truth."""
+(2)-(4) literal against the batch form, noise-free searches that land on the truth, and the
+search's posterior (its nodes' variance inflation, its attitude and its covariances over seeded
+runs)."""
 
 import math
 
@@ -8,9 +10,10 @@ import pytest
 
 from workbench.errors import WorkbenchError
 from workbench.estimation import metrics
-from workbench.experiments.terrain import camera, dem, halftone, navigation, search
+from workbench.experiments.terrain import camera, dem, estimators, halftone, navigation, posterior, search
 from workbench.experiments.terrain import scenario as scene
 from workbench.experiments.terrain.config import TerrainConfig
+from workbench.experiments.terrain.run import run_once
 
 
 def test_rotation_derivatives_and_axes():
@@ -231,3 +234,90 @@ def test_halftone_ground_error_is_zero_for_the_truth_and_grows(small):
     shifted = (sc.position[1] + np.array([30.0, 40.0, 0.0]), sc.angles[1])
     err = halftone.ground_error(sc.dem, sc.k, truth, shifted, step=5)
     assert abs(np.median(err) - 50.0) < 5.0  # a level shift moves the ground points by about as much
+
+
+# --- the search's posterior: the nodes' variance inflation, attitude, covariances that cover the cell
+
+def _box(rng: np.random.Generator, shape: tuple[int, int]) -> np.ndarray:
+    """A 3 x 3 box sum of unit white noise over 3: unit variance, correlation
+    ``(3 - |a|)(3 - |b|) / 9`` at lag ``(a, b)`` inside the box, 0 outside."""
+    from scipy.ndimage import uniform_filter
+
+    return 3.0 * uniform_filter(rng.normal(size=shape), 3, mode="wrap")
+
+
+def test_hac_inflation_of_white_and_correlated_nodes():
+    """``posterior.hac`` on a 160 x 200 lattice, rows ``h`` two box-correlated fields, R = 0.05^2.
+    White residuals of sigma 0.03: the residuals' lag-one correlation ~0, so Andrews' bandwidth
+    is 1 (lag 0 alone) and ``tr(H^-1 J) / n`` is ``sigma^2 / R`` (the variance ratio) to 3 %.
+    Box-correlated residuals: the score's lag covariances are the product of the two fields'
+    correlations, so ``J`` is ``sigma^2 / R^2`` times the Bartlett-weighted sum over lags of
+    ``rho(a, b)^2`` at the bandwidths chosen (4.5 times the white case's without weights), to 10 %."""
+    rng = np.random.default_rng(7)
+    gv, gu, noise, sigma = 160, 200, 0.05 ** 2, 0.03
+    iv, iu = (a.ravel() for a in np.mgrid[0:gv, 0:gu])
+    h = np.stack([_box(rng, (gv, gu)).ravel() for _ in range(2)])
+    hh, j, band, rho = posterior.hac(sigma * rng.normal(size=gv * gu), h, iu, iv, (gv, gu), noise)
+    assert band == (1.0, 1.0) and max(abs(r) for r in rho) < 0.02
+    assert np.trace(np.linalg.solve(hh, j)) / 2 == pytest.approx(sigma ** 2 / noise, rel=0.03)
+    hh, j, band, rho = posterior.hac(sigma * _box(rng, (gv, gu)).ravel(), h, iu, iv, (gv, gu), noise)
+    assert all(abs(r - 2 / 3) < 0.03 for r in rho) and all(b > 3 for b in band)
+
+    def weighted(b: float) -> float:                     # one axis: sum_a (1 - |a|/b) ((3 - |a|) / 3)^2
+        return sum(max(0.0, 1 - abs(a) / b) * ((3 - abs(a)) / 3) ** 2 for a in range(-2, 3))
+
+    expected = weighted(band[0]) * weighted(band[1]) * sigma ** 2 / noise
+    assert np.trace(np.linalg.solve(hh, j)) / 2 == pytest.approx(expected, rel=0.10)
+
+
+POSTERIOR_RUNS = 6
+POSTERIOR_SEED = 2
+POSTERIOR_NAMES = ("navigation", estimators.SEARCH, estimators.REFINED, estimators.ITERATED, estimators.POSTERIOR)
+
+
+@pytest.fixture(scope="module", params=["common", "ii-only"])
+def seeded(request):
+    """Six seeded synthetic runs at 100 x 100 (the default grid, uniform errors up to 100 m and
+    3 mrad) in each error mode: image II's attitude error per estimator, and its position NEES
+    under the estimate's covariance and under the winning filter's own ``Gamma_N``."""
+    mode = request.param
+    cfg = TerrainConfig(mode=mode, size="100x100", seed=POSTERIOR_SEED, runs=POSTERIOR_RUNS).validate()
+    table = [estimators.TABLE[n] for n in POSTERIOR_NAMES]
+    att = {n: [] for n in POSTERIOR_NAMES}
+    nees = {n: [] for n in POSTERIOR_NAMES[2:]}
+    cell = []
+    for run in range(POSTERIOR_RUNS):
+        res = run_once(cfg, run, table)
+        assert not res.failed, res.failed
+        sc = res.scene
+        m2 = navigation.error_map(mode, sc.interval)[1, :3]
+        for name, est in res.estimates.items():
+            att[name].append(np.linalg.norm(sc.angles[1] - est.angles[1]))
+            if name in nees:
+                d = sc.position[1] - est.position[1]
+                nees[name].append(float(metrics.nees(d, est.position_cov)))
+                if name == estimators.REFINED:
+                    cell.append(float(metrics.nees(d, m2 @ est.extras["cell_covariance"] @ m2.T)))
+    return mode, att, nees, cell
+
+
+def test_search_attitude_is_no_worse_than_the_navigation_systems(seeded):
+    """The winning cell's angles are at chance (the cells do not resolve them); the search takes
+    the posterior's: over six seeded runs in each mode its mean attitude error is below the
+    navigation system's, and so is the posterior's own."""
+    mode, att, _, _ = seeded
+    nav = np.mean(att["navigation"])
+    assert np.mean(att[estimators.SEARCH]) < nav, (mode, att)
+    assert np.mean(att[estimators.POSTERIOR]) < nav, (mode, att)
+
+
+def test_position_anees_is_inside_its_band(seeded):
+    """Over six seeded runs in each mode, image II's position ANEES of the refinement, the
+    iterated filter (their mean squared error under the posterior) and the posterior (its
+    sandwich covariance) is inside the 95 % chi2 band; under the winning filter's own
+    ``Gamma_N``, which takes the winning cell for the true one, the refinement's is over it."""
+    mode, _, nees, cell = seeded
+    lo, hi = metrics.chi2_band(3, POSTERIOR_RUNS)
+    for name, values in nees.items():
+        assert lo <= np.mean(values) <= hi, (mode, name, values)
+    assert np.mean(cell) > hi, (mode, cell)

@@ -37,7 +37,7 @@ def state_bound(problem: search.Problem, state: np.ndarray, cfg: TerrainConfig) 
     hh, _, rr = search.sums(problem, np.asarray(state, float)[None])
     nodes = len(problem.nodes)
     r = float(rr[0] / nodes)
-    prior = np.diag((navigation.sigma_fraction(cfg) * navigation.maxima(cfg)) ** 2)
+    prior = navigation.prior_covariance(cfg)
     info = hh[0] / r + np.linalg.inv(prior)
     P = np.linalg.inv(info)
     return 0.5 * (P + P.T), r

@@ -49,6 +49,13 @@ class RunSummary:
     ground_maps: dict[str, np.ndarray] = field(default_factory=dict)  # the recorded run's error maps
     bound: dict[str, float] = field(default_factory=dict)  # image II's Cramér-Rao variances (.bounds)
     bound_ba: dict[str, float] = field(default_factory=dict)  # the bundle adjustment's own graph's
+    diagnostics: dict[str, dict[str, float]] = field(default_factory=dict)  # DIAGNOSTICS an estimate reports
+
+
+DIAGNOSTICS = ("kappa", "effective_nodes")
+"""Scalars an estimate may carry in its extras and the metrics average over runs: the search's
+posterior's variance inflation of the node sum and its effective number of independent nodes
+(:mod:`.posterior`)."""
 
 
 def summarise(res: RunResult, cfg: TerrainConfig, run: int) -> RunSummary:
@@ -74,10 +81,12 @@ def summarise(res: RunResult, cfg: TerrainConfig, run: int) -> RunSummary:
         hit = bool(np.all(inside[searched]))
         linear = np.array([n in navigation.LINEAR for n in navigation.STATE[res.scene_mode]]) & searched
         hit_linear = bool(np.all(inside[linear]))
+    diag = {n: {k: float(e.extras[k]) for k in DIAGNOSTICS if k in e.extras} for n, e in res.estimates.items()}
     return RunSummary(run, pos, att, rm, sec, nees, hit, hit_linear,
                       0 if res.search is None else len(res.search.centres),
                       0 if res.search is None else res.search.nodes, dict(res.failed),
-                      maps if res.record else {}, cramer_rao(res, cfg), _ba_bound(res, cfg))
+                      maps if res.record else {}, cramer_rao(res, cfg), _ba_bound(res, cfg),
+                      {n: d for n, d in diag.items() if d})
 
 
 def _ba_bound(res: RunResult, cfg: TerrainConfig) -> dict[str, float]:
@@ -129,7 +138,9 @@ def statistics(cfg: TerrainConfig, runs: list[RunSummary], label: str = "") -> d
     """The metrics JSON: per estimator, image II's mean position error (m, 3D norm), mean
     attitude error (rad, norm of the three angles), ground RMSE of the halftone model (m, RMS
     over runs), seconds; ``reduction`` is the mean position error over ``navigation``'s; the
-    paper's normalised statistics in ``paper``."""
+    paper's normalised statistics in ``paper``; ``anees`` and ``nees_band`` where there is a
+    covariance; the :data:`DIAGNOSTICS` an estimate reports (``kappa``, ``effective_nodes``), means
+    over runs."""
     require(len(runs) > 0, "no runs to summarise")
     out: dict = {"experiment": "terrain", "scene": cfg.scenario, "mode": cfg.mode, "seed": cfg.seed,
                  "runs": len(runs), "label": label, "size": cfg.size, "distribution": cfg.distribution,
@@ -171,6 +182,10 @@ def statistics(cfg: TerrainConfig, runs: list[RunSummary], label: str = "") -> d
             lo, hi = metrics.chi2_band(3, len(nees))
             out["estimators"][name]["anees"] = float(np.mean(nees))
             out["estimators"][name]["nees_band"] = [lo, hi]
+        for key in DIAGNOSTICS:
+            values = [r.diagnostics[name][key] for r in runs if key in r.diagnostics.get(name, {})]
+            if values:
+                out["estimators"][name][key] = float(np.mean(values))
     return out
 
 

@@ -70,6 +70,13 @@ def sigma_fraction(cfg: TerrainConfig) -> float:
     return {"uniform": 1.0 / np.sqrt(3.0), "gaussian": 1.0 / 3.0, "maximum": 1.0}[cfg.distribution]
 
 
+def prior_covariance(cfg: TerrainConfig) -> np.ndarray:
+    """The navigation system's own prior on the error state: ``diag((sigma_fraction * max)^2)``,
+    the errors' spread under the chosen distribution (a Gaussian of that spread for uniform
+    and maximum errors, which have no Gaussian form), mean 0."""
+    return np.diag((sigma_fraction(cfg) * maxima(cfg)) ** 2)
+
+
 def measured(position: np.ndarray, angles: np.ndarray, pose_errors: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """What the navigation system reports: true pose plus its errors, per exposure."""
     return position + pose_errors[..., :3], angles + pose_errors[..., 3:]

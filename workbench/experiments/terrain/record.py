@@ -39,7 +39,7 @@ from workbench.estimation.angles import wrap
 from workbench.experiments.terrain import camera, halftone, navigation
 from workbench.experiments.terrain.camera import Intrinsics
 from workbench.experiments.terrain.estimate import Estimate
-from workbench.experiments.terrain.estimators import ITERATED, REFINED, SEARCH, TABLE
+from workbench.experiments.terrain.estimators import ITERATED, POSTERIOR, REFINED, SEARCH, TABLE
 from workbench.experiments.terrain.evaluate import RunSummary
 from workbench.experiments.terrain.model import PREFERRED
 from workbench.experiments.terrain.run import RunResult
@@ -47,7 +47,7 @@ from workbench.experiments.terrain.scenario import SUN, Scene
 
 TRUTH = (240, 240, 240)
 COLOUR_NAMES = {"truth": "white", "navigation": "red", SEARCH: "orange", REFINED: "green", ITERATED: "cyan",
-                "gtsam-ba": "violet"}
+                POSTERIOR: "blue", "gtsam-ba": "violet"}
 BACKGROUND = (24, 28, 34)           # the 3D views' background: the palette reads on it in either theme
 ERROR_COLORMAP = "Viridis"
 TIMELINES = ("hypothesis", "search")
@@ -74,7 +74,7 @@ def colour_name(first: RunResult, name: str) -> str:
 
 def _best(names: list[str]) -> str:
     """The estimator whose halftone model and orthophoto are shown by default."""
-    return next((n for n in (ITERATED, REFINED, "gtsam-ba", SEARCH) if n in names), "navigation")
+    return next((n for n in (POSTERIOR, ITERATED, REFINED, "gtsam-ba", SEARCH) if n in names), "navigation")
 
 
 def _accumulate() -> rrb.VisibleTimeRanges:
@@ -147,7 +147,7 @@ def _rgb(image: np.ndarray) -> np.ndarray:
 
 def _nice_ceiling(x: float) -> float:
     """The smallest of 1, 1.2, 1.5, 2, 2.5, 3, 4, 5, 6, 8 times a power of ten at or above ``x``
-    (a legend's top: at most 25 % above the largest value)."""
+    (a legend's top: at most a third above the largest value, the widest step of ``NICE``)."""
     if not np.isfinite(x) or x <= 0:
         return 1.0
     p = 10.0 ** np.floor(np.log10(x))

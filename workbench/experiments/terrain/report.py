@@ -36,6 +36,11 @@ def table(stats: dict) -> str:
         if e.get("anees") is not None:
             lo, hi = e["nees_band"]
             lines.append(f"- {name}: image II's position ANEES {e['anees']:.2f} (3 dof; 95 % band {lo:.2f}-{hi:.2f})")
+    for name, e in stats["estimators"].items():
+        if e.get("kappa") is not None:
+            lines.append(f"- {name}: the node sum's variance inflation kappa {e['kappa']:.2f} (the residuals' "
+                         f"correlation and spread against R): {stats['nodes']} nodes count as "
+                         f"{e['effective_nodes']:.0f} independent ones")
     lines += [""] + bounds.table(stats, (("position", "m"), ("attitude", "mrad")))
     lines += ["Errors are image II's (truth - estimate): position as a 3D norm, attitude as the norm of the "
               "three angles, means over runs; ground rmse is the halftone model's horizontal error over every pixel "

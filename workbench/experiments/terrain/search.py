@@ -394,8 +394,10 @@ class SearchResult:
         axes, its angular cells in 37 % (chance: 33 %; the best hypothesis with every angular
         cell right scores a median 1550 worse), so image II's attitude error is 3.45 mrad
         against the navigation system's 2.82 while its position error is 21 m against 97 and
-        its ground error 12.5 m against 90. The filter's refinement inside the cell
-        (:attr:`refinement`, :func:`iterate`) resolves the trade: 2.1-2.3 mrad there."""
+        its ground error 12.5 m against 90 (synthetic 200 x 200, common mode, seed 4, 5 runs:
+        3.65 against 2.86 mrad). The estimator ``recurrent-search`` therefore keeps this
+        centre's position and takes its angles from the search's posterior
+        (:mod:`.posterior`: 0.48 mrad there)."""
         return self.centres[self.winner]
 
     @property
