@@ -318,16 +318,15 @@ def rays_nis(rays: list[Ray], xl: np.ndarray, pl: np.ndarray, r: float) -> float
     the bearing (9) each pose would have seen it at, ``S_k = H_k diag(P_pose,k, P_LL) H_k' + R``
     (the sighting's pose and the landmark taken as independent). chi2(len(rays)) if the rays
     saw that landmark."""
-    total = 0.0
-    for ray in rays:
-        dx, dy = xl[0] - ray.pose[0], xl[1] - ray.pose[1]
-        q = dx * dx + dy * dy
-        hp = np.array([dy / q, -dx / q, -1.0])
-        hl = np.array([-dy / q, dx / q])
-        s = hp @ ray.cov @ hp + hl @ pl @ hl + r
-        nu = wrap(ray.bearing - (math.atan2(dy, dx) - ray.pose[2]))
-        total += nu * nu / s
-    return total
+    pose = np.array([ray.pose for ray in rays])
+    cov = np.array([ray.cov for ray in rays])
+    dx, dy = xl[0] - pose[:, 0], xl[1] - pose[:, 1]
+    q = dx * dx + dy * dy
+    hp = np.stack([dy / q, -dx / q, -np.ones_like(q)], axis=1)
+    hl = np.stack([-dy / q, dx / q], axis=1)
+    s = np.einsum("ki,kij,kj->k", hp, cov, hp) + np.einsum("ki,ij,kj->k", hl, pl, hl) + r
+    nu = wrap(np.array([ray.bearing for ray in rays]) - (np.arctan2(dy, dx) - pose[:, 2]))
+    return float(np.sum(nu * nu / s))
 
 
 def _rays_fit(rays: list[Ray], xl: np.ndarray, pl: np.ndarray, r: float, p: float) -> bool:
@@ -362,18 +361,19 @@ def _ray_distance(seen: tuple[float, np.ndarray], pose: np.ndarray, bearings: np
 
 
 def _mahalanobis(f: ekf.BearingEkf, lms: np.ndarray, bearings: np.ndarray) -> np.ndarray:
-    """``nu^2 / S`` for every (detection, landmark) pair, ``(len(bearings), len(lms))``."""
+    """``nu^2 / S`` for every (detection, landmark) pair, ``(len(bearings), len(lms))``.
+
+    ``S = H P H' + R`` with the bearing's Jacobian (9) ``H`` nonzero only on the pose and the
+    landmark: each ``S`` is a 5 x 5 block of ``P`` (pose, landmark) between two 5-vectors."""
     off = f.slot[lms]
     x = f.x
     dx, dy = x[off] - x[0], x[off + 1] - x[1]
     q = dx * dx + dy * dy
     pred = np.arctan2(dy, dx) - x[2]
-    n = len(x)
-    H = np.zeros((len(lms), n))
-    rows = np.arange(len(lms))
-    H[rows, 0], H[rows, 1], H[rows, 2] = dy / q, -dx / q, -1.0
-    H[rows, off], H[rows, off + 1] = -dy / q, dx / q
-    S = np.einsum("ij,jk,ik->i", H, f.P, H) + f.r
+    J = np.stack([dy / q, -dx / q, -np.ones_like(q), -dy / q, dx / q], axis=1)  # (k, 5)
+    at = np.concatenate([np.broadcast_to([0, 1, 2], (len(off), 3)), np.stack([off, off + 1], axis=1)], axis=1)
+    block = f.P[at[:, :, None], at[:, None, :]]  # (k, 5, 5)
+    S = np.einsum("ki,kij,kj->k", J, block, J) + f.r
     nu = wrap(bearings[:, None] - pred[None, :])
     return nu**2 / S[None, :]
 
