@@ -3,8 +3,9 @@
 ``spec/omni.md`` (Images): associate bearings to landmarks by the filter's predicted bearings
 with a chi-square gate. The front end runs the cloned-pose EKF (:mod:`ekf`) over the
 detections and manages tracks: a detection starts a *tentative* track, which becomes a
-landmark (is *confirmed*) only when the initialiser (1)-(5) accepts it, and which is merged
-into a landmark it agrees with or else rejected. At every epoch
+landmark (is *confirmed*) only when the initialiser (1)-(5) accepts it and it is then seen
+where the filter predicts it, and which is otherwise merged into a landmark it agrees with
+or rejected. At every epoch
 
 1. **mapped lines.** Each landmark's predicted bearing (9) and innovation variance
    ``S = H P H' + R`` give a Mahalanobis cost ``nu^2 / S`` to every detection, gated at the
@@ -19,12 +20,19 @@ into a landmark it agrees with or else rejected. At every epoch
 2. **tentative tracks.** A pending line's range is unknown, so its last ray, seen from the
    current pose, predicts an interval of bearings (from a line 1 m away to one at
    infinity); a detection's cost is its distance outside that interval, and matches within
-   ``track_gate`` (3 sigma + 0.5 deg) feed the landmark initialiser (1)-(5). When it accepts,
-   the track is confirmed, unless the new landmark is the same as a mapped one: the 2-dof
-   chi-square test of their difference over the filter's joint covariance,
-   ``d' (P_aa + P_bb - P_ab - P_ba)^-1 d``, at the same probability; then it is merged;
+   ``track_gate`` (3 sigma + 0.5 deg) feed the landmark initialiser (1)-(5). The landmark it
+   proposes must also fit all the track's rays (the rays' test below; two lines' rays can
+   meet at a point that fits neither, e.g. on the route). It then enters the filter, unless
+   the 2-dof chi-square test of its difference from a mapped landmark over the filter's
+   joint covariance, ``d' (P_aa + P_bb - P_ab - P_ba)^-1 d``, at the same probability, finds
+   it the same: then it is merged into that one;
 3. what is left starts a new tentative track;
-4. **retiring.** A tentative track unseen for ``drop_after`` seconds leaves the filter. Its
+4. **confirmation** (M-of-N): a landmark new in the filter is *provisional*; each later epoch
+   it is predicted inside the camera's range and field of view counts a hit if a detection
+   went to it, a miss if none did. ``CONFIRM_M`` hits of ``CONFIRM_N`` confirm it; more misses
+   take it out of the filter (marginalised) and retire its track (a phantom: nothing is
+   seen where it should be);
+5. **retiring.** A tentative track unseen for ``drop_after`` seconds leaves the filter. Its
    rays (pose estimate and covariance at each sighting, bearing) are tested against every
    landmark: the summed ``nu_k^2 / S_k`` with ``S_k = H_k diag(P_pose,k, P_LL) H_k' + R`` below
    the chi2(n) quantile. A track whose rays agree with exactly one landmark is merged into
@@ -55,9 +63,10 @@ from workbench.experiments.omni.scenario import OmniData
 
 BIG = 1e9
 MAPPED, PENDING, NEW = 0, 1, 2  # how a detection got its track (``Association.kind``)
-# M-of-N confirmation of a new landmark: the textbook 3-of-5 logic (Blackman & Popoli, Design
-# and Analysis of Modern Tracking Systems, 1999, sec. 9.3); a line detected with probability
-# 0.9 passes with probability 0.99, a phantom seen one epoch in five with 0.06
+# M-of-N confirmation of a new landmark: the common 3-of-5 track-confirmation logic (M/N
+# logic, e.g. Blackman & Popoli, Design and Analysis of Modern Tracking Systems, 1999); a line
+# detected with probability 0.9 passes with probability 0.99, a phantom seen one epoch in five
+# with 0.06 (binomial tails)
 CONFIRM_M, CONFIRM_N = 3, 5
 
 
@@ -122,20 +131,8 @@ def associate(data: OmniData, cfg: OmniConfig, track_gate: float | None = None) 
             last = step
         b = data.meas_bearing[idx]
         free = _match_mapped(f, tr, idx, b, gate)
-        pending = list(f.pending)
-        rest = np.flatnonzero(free)
-        if pending and len(rest):
-            cost = np.stack([_ray_distance(last_seen[p], f.x[:3], b[rest]) for p in pending], axis=1)
-            rows, cols = linear_sum_assignment(np.where(cost < track_gate, cost, BIG))
-            ok = cost[rows, cols] < track_gate
-            for r, c in zip(rows[ok], cols[ok], strict=True):
-                lm, det = pending[c], rest[r]
-                _sighting(f, tr, lm, idx[det], float(b[det]), PENDING)
-                free[det] = False
-                last_seen[lm] = (float(b[det]), f.x[:3].copy())
-                if f.try_initialise(lm, float(b[det]), step, partial(_rays_fit, tr.rays[lm], r=f.r, p=p_gate)):
-                    _confirm(f, tr, lm, p_gate)
-        for det in np.flatnonzero(free):
+        free = _match_pending(f, tr, idx, b, free, last_seen, track_gate, step, p_gate)
+        for det in np.flatnonzero(free):  # step 3
             lm = tr.born
             tr.born += 1
             _sighting(f, tr, lm, idx[det], float(b[det]), NEW)
@@ -193,6 +190,30 @@ def _match_mapped(f: ekf.BearingEkf, tr: Tracks, idx: np.ndarray, b: np.ndarray,
     return free
 
 
+def _match_pending(f: ekf.BearingEkf, tr: Tracks, idx: np.ndarray, b: np.ndarray, free: np.ndarray,
+                   last_seen: dict[int, tuple[float, np.ndarray]], track_gate: float, step: int,
+                   p: float) -> np.ndarray:
+    """Step 2: free detections to pending lines by their last rays (Hungarian within
+    ``track_gate``), each match tried with the initialiser (1)-(5) and the rays' fit to the
+    triangulated point; returns which detections are still free."""
+    pending = list(f.pending)
+    rest = np.flatnonzero(free)
+    if not pending or not len(rest):
+        return free
+    free = free.copy()
+    cost = np.stack([_ray_distance(last_seen[lm], f.x[:3], b[rest]) for lm in pending], axis=1)
+    rows, cols = linear_sum_assignment(np.where(cost < track_gate, cost, BIG))
+    ok = cost[rows, cols] < track_gate
+    for r, c in zip(rows[ok], cols[ok], strict=True):
+        lm, det = pending[c], rest[r]
+        _sighting(f, tr, lm, idx[det], float(b[det]), PENDING)
+        free[det] = False
+        last_seen[lm] = (float(b[det]), f.x[:3].copy())
+        if f.try_initialise(lm, float(b[det]), step, partial(_rays_fit, tr.rays[lm], r=f.r, p=p)):
+            _confirm(f, tr, lm, p)
+    return free
+
+
 def _assign_mapped(f: ekf.BearingEkf, tr: Tracks, dets: np.ndarray, lms: np.ndarray, bearings: np.ndarray) -> None:
     tr.track[dets], tr.kind[dets] = lms, MAPPED
     f.update(lms, bearings)
@@ -218,8 +239,8 @@ def _overlapping(f: ekf.BearingEkf, lms: np.ndarray, inside: np.ndarray) -> tupl
 
 
 def _confirm(f: ekf.BearingEkf, tr: Tracks, lm: int, p: float) -> None:
-    """Step 2's end: a track the initialiser accepted is merged into a mapped duplicate, or
-    confirmed; retired tracks whose rays now agree with it alone join it."""
+    """Step 2's end: a landmark the initialiser accepted is merged into a mapped duplicate, or
+    becomes provisional (step 4)."""
     dup = _duplicate_of(f, lm, p)
     if dup >= 0:
         f.forget(lm)
@@ -230,8 +251,8 @@ def _confirm(f: ekf.BearingEkf, tr: Tracks, lm: int, p: float) -> None:
 
 def _score_provisional(f: ekf.BearingEkf, tr: Tracks, idx: np.ndarray, max_range: float, fov: float,
                        p: float) -> None:
-    """M-of-N confirmation: each epoch a provisional landmark is predicted in view, a detection
-    associated with it is a hit, none a miss; ``CONFIRM_M`` hits confirm it, more than
+    """Step 4, M-of-N confirmation: each epoch a provisional landmark is predicted in view, a
+    detection associated with it is a hit, none a miss; ``CONFIRM_M`` hits confirm it, more than
     ``CONFIRM_N - CONFIRM_M`` misses take it out of the map and retire its track."""
     for lm, score in list(tr.provisional.items()):
         if not _in_view(f, lm, max_range, fov):
@@ -265,7 +286,7 @@ def _confirmed(f: ekf.BearingEkf, tr: Tracks, lm: int, p: float) -> None:
 
 
 def _retire(f: ekf.BearingEkf, tr: Tracks, lm: int, p: float) -> None:
-    """Step 4: a tentative track left the filter: merged into the one landmark its rays agree
+    """Step 5: a tentative track left the filter: merged into the one landmark its rays agree
     with, or kept aside for landmarks confirmed later."""
     target = _agreeing(f, tr.rays[lm], p)
     if target >= 0:
