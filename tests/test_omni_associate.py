@@ -65,6 +65,27 @@ def test_retired_track_joins_the_one_landmark_its_rays_agree_with():
     assert assoc._agreeing(f, side, 0.99) == -1
 
 
+def test_provisional_landmark_needs_m_of_n_hits():
+    """M-of-N confirmation: a new landmark seen in the next 3 epochs it is predicted in view is
+    confirmed; one predicted in view and not seen 3 times (more than N - M = 2 misses) is
+    taken out of the filter and its track retired; one out of view is not scored."""
+    f = _filter_with_map([(10.0, 0.0), (0.0, 10.0), (-50.0, 0.0)], sd=0.1)
+    cov = np.diag([1e-4, 1e-4, 1e-6])
+    tr = assoc.Tracks(np.full(6, -1), np.full(6, -1), born=3)
+    for lm in range(3):
+        tr.rays[lm] = _rays(f.x[3 + 2 * lm:5 + 2 * lm], np.array([[0.0, -1.0, 0.0]]), cov)
+        tr.provisional[lm] = [-1, 0]  # as _confirm leaves it, its own sighting scored next
+    tr.track[0] = 0  # the epoch it entered the filter: its own sighting
+    assoc._score_provisional(f, tr, np.array([0]), 30.0, 2 * np.pi, 0.99)
+    assert tr.provisional == {0: [0, 0], 1: [-1, 1], 2: [-1, 0]}
+    for epoch in (1, 2, 3):  # landmark 0 seen each epoch, 1 never, 2 beyond the 30 m range
+        tr.track[epoch] = 0
+        assoc._score_provisional(f, tr, np.array([epoch]), 30.0, 2 * np.pi, 0.99)
+    assert tr.confirmed == {0} and 0 not in tr.rays
+    assert f.slot[1] == -1 and tr.retired == [1]  # 3 misses: out of the filter, retired
+    assert tr.provisional == {2: [-1, 0]} and f.slot[2] >= 0
+
+
 def _noise_free(duration: float) -> tuple[OmniConfig, object, np.ndarray]:
     """The simulation's bearings without noise (odometry noisy), ids stripped; the front end
     told the image stage's 0.3 deg."""

@@ -246,7 +246,7 @@ def _confirm(f: ekf.BearingEkf, tr: Tracks, lm: int, p: float) -> None:
         f.forget(lm)
         tr.relabel(lm, dup)
         return
-    tr.provisional[lm] = [0, -1]  # its own sighting this epoch is not evidence
+    tr.provisional[lm] = [-1, 0]  # its own sighting this epoch (scored as a hit) is not evidence
 
 
 def _score_provisional(f: ekf.BearingEkf, tr: Tracks, idx: np.ndarray, max_range: float, fov: float,
