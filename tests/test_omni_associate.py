@@ -38,12 +38,20 @@ def _rays(landmark: np.ndarray, poses: np.ndarray, cov: np.ndarray) -> list[asso
 
 def test_duplicate_landmark_is_merged_by_its_covariance():
     """A landmark 5 cm from another, both known to 10 cm, is the same one by the 2-dof test
-    of their difference (d2 = 0.054^2 / 0.02 = 0.15 < chi2_2(0.99) = 9.21); 2 m away it is not."""
+    of their difference (d2 = (0.05^2 + 0.02^2) / 0.02 = 0.145 < chi2_2(0.99) = 9.21); 2 m
+    away it is not. Merged, the filter holds their equal-weight mean with half the variance."""
     f = _filter_with_map([(10.0, 0.0), (10.05, 0.02), (12.0, 0.0)], sd=0.1)
-    assert assoc._duplicate_of(f, 1, 0.99) == 0
-    assert assoc._duplicate_of(f, 2, 0.99) == -1
-    # and the difference's statistic is the hand-computed one
-    assert math.isclose(assoc._difference_nis(f, 5, 3), (0.05**2 + 0.02**2) / 0.02, rel_tol=1e-12)
+    d2 = assoc._difference_nis(f, np.array([3, 3, 5]), np.array([5, 7, 7]))
+    assert np.allclose(d2, [(0.05**2 + 0.02**2) / 0.02, 2.0**2 / 0.02, (1.95**2 + 0.02**2) / 0.02], rtol=1e-12)
+    assert assoc._most_alike(f, 0.99) == (0, 1)
+    tr = assoc.Tracks(np.array([0, 1, 1, 2]), np.zeros(4, int), confirmed={1, 2}, born=3)
+    tr.provisional[0] = [1, 0]
+    assoc._merge_duplicates(f, tr, 0.99)
+    assert f.slot[1] == -1 and len(f.x) == 3 + 4
+    assert np.allclose(f.x[3:5], [10.025, 0.01]) and np.allclose(np.diag(f.P)[3:5], 0.1**2 / 2)
+    assert tr.track.tolist() == [0, 0, 0, 2] and tr.merged == 1
+    assert tr.confirmed == {0, 2} and not tr.provisional  # the confirmed younger confirms the older
+    assert assoc._most_alike(f, 0.99) is None
 
 
 def test_retired_track_joins_the_one_landmark_its_rays_agree_with():

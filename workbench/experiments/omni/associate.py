@@ -22,10 +22,14 @@ or rejected. At every epoch
    infinity); a detection's cost is its distance outside that interval, and matches within
    ``track_gate`` (3 sigma + 0.5 deg) feed the landmark initialiser (1)-(5). The landmark it
    proposes must also fit all the track's rays (the rays' test below; two lines' rays can
-   meet at a point that fits neither, e.g. on the route). It then enters the filter, unless
-   the 2-dof chi-square test of its difference from a mapped landmark over the filter's
-   joint covariance, ``d' (P_aa + P_bb - P_ab - P_ba)^-1 d``, at the same probability, finds
-   it the same: then it is merged into that one;
+   meet at a point that fits neither, e.g. on the route). It then enters the filter;
+   **merging**: whenever two mapped landmarks pass the 2-dof chi-square test of their
+   difference over the filter's joint covariance, ``d' (P_aa + P_bb - P_ab - P_ba)^-1 d``, at
+   the same probability, the younger is merged into the older: the filter is conditioned on
+   their equality and the younger marginalised out. This catches a line triangulated anew
+   next to its own landmark, at once or later: after a loop the drifted pose can put a line
+   outside its landmark's gate, and only once other lines have corrected the pose do the
+   two agree;
 3. what is left starts a new tentative track;
 4. **confirmation** (M-of-N): a landmark new in the filter is *provisional*; each later epoch
    it is predicted inside the camera's range and field of view counts a hit if a detection
@@ -132,6 +136,7 @@ def associate(data: OmniData, cfg: OmniConfig, track_gate: float | None = None) 
         b = data.meas_bearing[idx]
         free = _match_mapped(f, tr, idx, b, gate)
         free = _match_pending(f, tr, idx, b, free, last_seen, track_gate, step, p_gate)
+        _merge_duplicates(f, tr, p_gate)
         for det in np.flatnonzero(free):  # step 3
             lm = tr.born
             tr.born += 1
@@ -210,7 +215,7 @@ def _match_pending(f: ekf.BearingEkf, tr: Tracks, idx: np.ndarray, b: np.ndarray
         free[det] = False
         last_seen[lm] = (float(b[det]), f.x[:3].copy())
         if f.try_initialise(lm, float(b[det]), step, partial(_rays_fit, tr.rays[lm], r=f.r, p=p)):
-            _confirm(f, tr, lm, p)
+            _confirm(f, tr, lm)
     return free
 
 
@@ -238,15 +243,58 @@ def _overlapping(f: ekf.BearingEkf, lms: np.ndarray, inside: np.ndarray) -> tupl
     return np.array(rows, int), np.array(cols, int)
 
 
-def _confirm(f: ekf.BearingEkf, tr: Tracks, lm: int, p: float) -> None:
-    """Step 2's end: a landmark the initialiser accepted is merged into a mapped duplicate, or
-    becomes provisional (step 4)."""
-    dup = _duplicate_of(f, lm, p)
-    if dup >= 0:
-        f.forget(lm)
-        tr.relabel(lm, dup)
-        return
+def _confirm(f: ekf.BearingEkf, tr: Tracks, lm: int) -> None:
+    """Step 2's end: a landmark the initialiser accepted becomes provisional (step 4)."""
     tr.provisional[lm] = [-1, 0]  # its own sighting this epoch (scored as a hit) is not evidence
+
+
+def _merge_duplicates(f: ekf.BearingEkf, tr: Tracks, p: float) -> None:
+    """Step 2b: while two mapped landmarks pass the 2-dof test of being one, the younger track
+    is merged into the older (the filter conditioned on their equality, the younger
+    marginalised out, its detections relabelled; a confirmed one confirms the other)."""
+    while (pair := _most_alike(f, p)) is not None:
+        keep, drop = pair
+        f.merge(keep, drop)
+        tr.relabel(drop, keep)
+        was_confirmed = drop in tr.confirmed
+        tr.confirmed.discard(drop)
+        tr.provisional.pop(drop, None)
+        if was_confirmed and keep in tr.provisional:
+            del tr.provisional[keep]
+            _confirmed(f, tr, keep, p)
+
+
+def _most_alike(f: ekf.BearingEkf, p: float) -> tuple[int, int] | None:
+    """The pair of mapped landmarks (older, younger) most likely one line by the 2-dof
+    chi-square test of their difference ``d = x_a - x_b`` over the joint covariance,
+    ``d' (P_aa + P_bb - P_ab - P_ba)^-1 d < chi2_2(p)``; ``None`` if no pair passes."""
+    lms = np.flatnonzero(f.slot >= 0)
+    if len(lms) < 2:
+        return None
+    i, j = np.triu_indices(len(lms), 1)
+    a, b = f.slot[lms[i]], f.slot[lms[j]]
+    d2 = _difference_nis(f, a, b)
+    best = int(np.argmin(d2))
+    if not d2[best] < chi2_quantile(p, 2):
+        return None
+    return int(lms[i[best]]), int(lms[j[best]])
+
+
+def _difference_nis(f: ekf.BearingEkf, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``d' C^-1 d`` for ``d = x_a - x_b``, ``C = P_aa + P_bb - P_ab - P_ba``, for state offsets
+    ``a``, ``b`` (arrays of landmarks' first rows); ``inf`` where ``C`` is singular."""
+    x, P = f.x, f.P
+    d = np.stack([x[a] - x[b], x[a + 1] - x[b + 1]], axis=1)
+    ra, rb = np.stack([a, a + 1], axis=1), np.stack([b, b + 1], axis=1)
+
+    def block(r: np.ndarray, c: np.ndarray) -> np.ndarray:
+        return P[r[:, :, None], c[:, None, :]]
+
+    C = block(ra, ra) + block(rb, rb) - block(ra, rb) - block(rb, ra)
+    det = C[:, 0, 0] * C[:, 1, 1] - C[:, 0, 1] * C[:, 1, 0]
+    quad = C[:, 1, 1] * d[:, 0] ** 2 - (C[:, 0, 1] + C[:, 1, 0]) * d[:, 0] * d[:, 1] + C[:, 0, 0] * d[:, 1] ** 2
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(det > 0, quad / det, np.inf)
 
 
 def _score_provisional(f: ekf.BearingEkf, tr: Tracks, idx: np.ndarray, max_range: float, fov: float,
@@ -293,30 +341,6 @@ def _retire(f: ekf.BearingEkf, tr: Tracks, lm: int, p: float) -> None:
         tr.relabel(lm, target)
     else:
         tr.retired.append(lm)
-
-
-def _duplicate_of(f: ekf.BearingEkf, lm: int, p: float) -> int:
-    """The mapped landmark most likely the same as ``lm`` by the 2-dof chi-square test of
-    their difference over the joint covariance (-1: none passes)."""
-    others = np.flatnonzero(f.slot >= 0)
-    others = others[others != lm]
-    if not len(others):
-        return -1
-    a = int(f.slot[lm])
-    d2 = np.array([_difference_nis(f, a, int(f.slot[o])) for o in others])
-    best = int(np.argmin(d2))
-    return int(others[best]) if d2[best] < chi2_quantile(p, 2) else -1
-
-
-def _difference_nis(f: ekf.BearingEkf, a: int, b: int) -> float:
-    """``d' C^-1 d`` for ``d = x_a - x_b``, ``C = P_aa + P_bb - P_ab - P_ba`` (state offsets)."""
-    d = f.x[a:a + 2] - f.x[b:b + 2]
-    P = f.P
-    C = P[a:a + 2, a:a + 2] + P[b:b + 2, b:b + 2] - P[a:a + 2, b:b + 2] - P[b:b + 2, a:a + 2]
-    try:
-        return float(d @ np.linalg.solve(C, d))
-    except np.linalg.LinAlgError:
-        return math.inf
 
 
 def _landmark(f: ekf.BearingEkf, lm: int) -> tuple[np.ndarray, np.ndarray]:

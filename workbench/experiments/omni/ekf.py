@@ -202,6 +202,27 @@ class BearingEkf:
     def _drop_clone(self, offset: int) -> None:
         self._delete(offset, 3)
 
+    def merge(self, keep: int, drop: int) -> None:
+        """Two initialised landmarks found to be one line: condition the state on
+        ``x_keep = x_drop`` (the update (10)-(13) with ``H = [.. I .. -I ..]`` and no noise: an
+        exact linear constraint) and marginalise ``drop`` out."""
+        a, b = int(self.slot[keep]), int(self.slot[drop])
+        H = np.zeros((2, len(self.x)))
+        H[:, a:a + 2] = np.eye(2)
+        H[:, b:b + 2] = -np.eye(2)
+        PH = self.P @ H.T
+        try:
+            K = np.linalg.solve(H @ PH, PH.T).T
+        except np.linalg.LinAlgError:
+            self.failures += 1
+        else:
+            x = self.x - K @ (H @ self.x)
+            P = self.P - K @ PH.T
+            if np.isfinite(x).all() and np.isfinite(P).all():
+                self.x, self.P = x, 0.5 * (P + P.T)
+                self.x[2] = wrap(self.x[2])
+        self.forget(drop)
+
     def forget(self, lm: int) -> None:
         """Take an initialised landmark out of the map (marginalised; e.g. a duplicate)."""
         offset = int(self.slot[lm])
