@@ -42,6 +42,7 @@ The NIS gate (``nis_gate``) drops bearings whose innovation is improbable (outli
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import numpy as np
 
@@ -187,22 +188,56 @@ class BearingEkf:
             sight["var"] = np.diag(self.P[:3, :3]).copy()
         self.pending[lm] = sight
 
-    def _drop_clone(self, offset: int) -> None:
-        keep = np.r_[0:offset, offset + 3:len(self.x)]
+    def _delete(self, offset: int, size: int) -> None:
+        """Marginalise the ``size`` state rows from ``offset`` out (a Gaussian's marginal: drop
+        them from the mean and the covariance) and shift the offsets behind them."""
+        keep = np.r_[0:offset, offset + size:len(self.x)]
         self.x = self.x[keep]
         self.P = self.P[np.ix_(keep, keep)]
-        self.slot[self.slot > offset] -= 3
+        self.slot[self.slot > offset] -= size
         for other in self.pending.values():
             if other.get("offset", -1) > offset:
-                other["offset"] -= 3
+                other["offset"] -= size
+
+    def _drop_clone(self, offset: int) -> None:
+        self._delete(offset, 3)
+
+    def merge(self, keep: int, drop: int) -> None:
+        """Two initialised landmarks found to be one line: condition the state on
+        ``x_keep = x_drop`` (the update (10)-(13) with ``H = [.. I .. -I ..]`` and no noise: an
+        exact linear constraint) and marginalise ``drop`` out."""
+        a, b = int(self.slot[keep]), int(self.slot[drop])
+        H = np.zeros((2, len(self.x)))
+        H[:, a:a + 2] = np.eye(2)
+        H[:, b:b + 2] = -np.eye(2)
+        PH = self.P @ H.T
+        try:
+            K = np.linalg.solve(H @ PH, PH.T).T
+        except np.linalg.LinAlgError:
+            self.failures += 1
+        else:
+            x = self.x - K @ (H @ self.x)
+            P = self.P - K @ PH.T
+            if np.isfinite(x).all() and np.isfinite(P).all():
+                self.x, self.P = x, 0.5 * (P + P.T)
+                self.x[2] = wrap(self.x[2])
+        self.forget(drop)
+
+    def forget(self, lm: int) -> None:
+        """Take an initialised landmark out of the map (marginalised; e.g. a duplicate)."""
+        offset = int(self.slot[lm])
+        self.slot[lm] = -1
+        self._delete(offset, 2)
 
     def drop(self, lm: int) -> None:
         sight = self.pending.pop(lm)
         if "offset" in sight:
             self._drop_clone(sight["offset"])
 
-    def try_initialise(self, lm: int, bearing: float, step: int) -> bool:
-        """Triangulate from the first sighting and this one; augment the state if the gate passes."""
+    def try_initialise(self, lm: int, bearing: float, step: int,
+                       accept: Callable[[np.ndarray, np.ndarray], bool] | None = None) -> bool:
+        """Triangulate from the first sighting and this one; augment the state if the gate passes
+        (and ``accept(mean, P_ll)``, a caller's own test of the candidate landmark, if given)."""
         cfg, sight = self.cfg, self.pending[lm]
         sight["last"] = step
         r2 = self.r
@@ -241,6 +276,8 @@ class BearingEkf:
         else:
             cross = G[:, 3:6] @ self.P[:3, :]
             p_ll = G @ cov @ G.T if self.linear else att.cov
+        if accept is not None and not accept(mean, p_ll):
+            return False
         self._augment(lm, step, mean, cross, p_ll)
         return True
 

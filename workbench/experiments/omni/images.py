@@ -217,7 +217,9 @@ def bad_frame(kind: str, cam: MirrorCamera) -> np.ndarray:
 def run_stage(data: OmniData, cam: MirrorCamera, cfg: OmniConfig, rng: np.random.Generator,
               keep_every: int = 0, bad_frames: int = 0) -> ImageStage:
     """Render a round image at every bearing epoch from the true pose, extract its bearings,
-    associate them through the filter, and score the stage against the simulation.
+    associate them through the filter (:func:`associate.associate`: only confirmed tracks
+    are kept; ``tracks_merged`` / ``tracks_rejected`` count the tentative tracks merged into a
+    landmark or left out), and score the stage against the simulation.
 
     ``bad_frames`` frames (spread evenly, kinds in turn from ``BAD_FRAMES``) are replaced by
     bad ones: they give no bearings (the estimators coast on odometry) and are listed in
@@ -278,6 +280,7 @@ def run_stage(data: OmniData, cam: MirrorCamera, cfg: OmniConfig, rng: np.random
         "false_detections": int(np.sum(~real)),
         "association_rate": float(np.mean(correct[real])) if real.any() else None,
         "tracks": assoc.n_tracks, "landmarks": int(len(np.unique(owner[owner >= 0]))),
+        "tracks_merged": assoc.merged, "tracks_rejected": assoc.rejected,
         "seconds": seconds, "bad_frames": refused,
     }
     return ImageStage(associated, stats, frames)

@@ -65,7 +65,9 @@ def table(stats: dict) -> str:
                   f"{pct(im['detection_rate'])} % of the lines in view detected, "
                   f"{_f(im['false_detections'], '.1f')} false detections a run; {pct(im['association_rate'])} % of "
                   f"detections associated with their own line ({_f(im['tracks'], '.1f')} tracks for "
-                  f"{_f(im['landmarks'], '.1f')} lines); {_f(im['seconds'], '.1f')} s a run"]
+                  f"{_f(im['landmarks'], '.1f')} lines; {_f(im.get('tracks_merged'), '.1f')} tentative tracks "
+                  f"merged into a landmark, {_f(im.get('tracks_rejected'), '.1f')} rejected); "
+                  f"{_f(im['seconds'], '.1f')} s a run"]
         if im.get("bearing_rmse") is None:
             lines.append("Nothing was detected in any frame: the estimators had no bearings.")
     if stats["scenario"] == "paper":
