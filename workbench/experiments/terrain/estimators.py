@@ -132,7 +132,7 @@ TABLE: dict[str, Estimator] = table(
               causal=True, covariances=True),
     Estimator(ITERATED, iterated, (40, 200, 230), "that filter re-linearised at its own estimate until it settles",
               causal=True, covariances=True),
-    Estimator(POSTERIOR, tempered, (70, 110, 255), "the navigation prior instead of the cell's, the likelihood "
+    Estimator(POSTERIOR, tempered, (255, 105, 180), "the navigation prior instead of the cell's, the likelihood "
               "tempered by the nodes' measured correlation: damped Gauss-Newton from the iterated filter",
               causal=True, covariances=True),
     Estimator("gtsam-ba", bundle_adjustment, (190, 90, 240),
