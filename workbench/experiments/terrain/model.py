@@ -43,9 +43,6 @@ orientation covariance. Bundle adjustment's comes first: its covariance is consi
 ANEES 1.56 in a 1.25-5.5 band, synthetic, seed 4, 5 runs) and does not rest on the search; the
 search's filters' covariances (the MSE under its posterior) are consistent on the synthetic pairs
 but not on two of the four real pair-modes."""
-STEP = (0.1, 0.1, 0.1, 2e-5, 2e-5, 2e-5)
-"""Central-difference steps of the six orientation elements (m, rad): 2e-5 rad moves a ground
-point about as much as 0.1 m of position at the scenes' 1.5-5 km heights."""
 
 
 @dataclass
@@ -73,18 +70,22 @@ class Model:
                                     np.asarray(v, float), what=what)
 
     def propagate(self, fn, pose: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray | None]:
-        """``fn(pose) -> values (m,)`` and its covariance ``J C J'`` (central differences over
-        :data:`STEP`); the covariance is None where the model has no orientation covariance."""
+        """``fn(pose) -> values (m,)`` at the model's orientation, and their covariance by the
+        unscented transform over the orientation covariance (:mod:`workbench.estimation.unscented`:
+        13 sigma points, 2.6 sigma out); None where the model has no covariance. Not central
+        differences: a terrain slope read from a real DEM changes across grid cells within the
+        ground point's uncertainty, and its first-order sigma was 2-30 times too small on the
+        NGI pair."""
+        from workbench.estimation.unscented import sigma_points
+
         p = self.pose if pose is None else np.asarray(pose, float)
         value = np.asarray(fn(p), float)
         if self.pose_cov is None or not np.isfinite(self.pose_cov).all():
             return value, None
-        jac = np.empty((value.size, 6))
-        for i, h in enumerate(STEP):
-            d = np.zeros(6)
-            d[i] = h
-            jac[:, i] = (np.asarray(fn(p + d), float).ravel() - np.asarray(fn(p - d), float).ravel()) / (2 * h)
-        return value, jac @ self.pose_cov @ jac.T
+        points, weights = sigma_points(p, self.pose_cov)
+        ys = np.array([np.asarray(fn(x), float).ravel() for x in points])
+        d = ys - weights @ ys
+        return value, (weights[:, None] * d).T @ d
 
     def arrays(self) -> dict[str, np.ndarray]:
         d = self.dem
@@ -177,19 +178,17 @@ def contents(model: Model, scene) -> dict[str, bytes]:
 
 def _pixel_sigmas(model: Model, g: np.ndarray) -> np.ndarray:
     """Per pixel, the standard deviations of X, Y, H ``(rows, cols, 3)`` from the orientation
-    covariance (NaN without one): the six central differences of the whole grid at once."""
+    covariance (NaN without one): the whole grid through :meth:`Model.propagate`'s sigma points
+    at once, so a pixel's sigma here is the one ``measure`` gives it."""
+    from workbench.estimation.unscented import sigma_points
+
     if model.pose_cov is None or not np.isfinite(model.pose_cov).all():
         return np.full(g.shape, np.nan)
-    k = model.k
-    u, v = k.pixel_grid(1)
-    jac = np.empty((g.shape[0] * g.shape[1], 3, 6))
-    for i, h in enumerate(STEP):
-        d = np.zeros(6)
-        d[i] = h
-        plus = model.ground(u, v, model.pose + d, what="the image footprint")
-        minus = model.ground(u, v, model.pose - d, what="the image footprint")
-        jac[:, :, i] = (plus - minus) / (2 * h)
-    var = np.einsum("nij,jk,nik->ni", jac, model.pose_cov, jac)
+    u, v = model.k.pixel_grid(1)
+    points, weights = sigma_points(model.pose, model.pose_cov)
+    grids = np.array([model.ground(u, v, p, what="the image footprint") for p in points])   # (13, N, 3)
+    d = grids - np.einsum("s,snc->nc", weights, grids)
+    var = np.einsum("s,snc->nc", weights, d * d)
     return np.sqrt(np.maximum(var, 0.0)).reshape(g.shape)
 
 
