@@ -109,12 +109,10 @@ def layout(path: Path) -> Node:
 
 
 def tab_blueprints(path: Path, folder: Path) -> list[tuple[str, Path]]:
-    """Blueprints (``.rbl``) that are the recording's own, following its data (the viewer plays a
-    file as it opens it, so its picture never settles; paused, it settled on the first step,
-    where terrain's search has not begun and its hypotheses view is empty; following, the time
-    cursor rests at the end, where a user's playing viewer ends): first as it opens, then with
-    each tab after the first in front: (the tab's name, or ``"default"``, and the file). Loaded
-    beside the recording, the viewer shows that."""
+    """Blueprints (``.rbl``) that are the recording's own, paused (the viewer plays a file as it
+    opens it, so its picture never settles): first as it opens, then with each tab after the
+    first in front: (the tab's name, or ``"default"``, and the file). Loaded beside the
+    recording, the viewer shows that."""
     import rerun as rr
     from rerun import bindings
     from rerun.blueprint.archetypes import ContainerBlueprint, TimePanelBlueprint
@@ -134,7 +132,7 @@ def tab_blueprints(path: Path, folder: Path) -> list[tuple[str, Path]]:
         stream.set_time("blueprint", sequence=2**40)
         if tabs is not None:
             stream.log(tabs.id, ContainerBlueprint.from_fields(active_tab=child.id))
-        stream.log("time_panel", TimePanelBlueprint.from_fields(play_state="following"))
+        stream.log("time_panel", TimePanelBlueprint.from_fields(play_state="paused"))
         target = folder / f"{path.stem}.view{k}.rbl"
         bindings.save_blueprint(str(target), stream.to_native())
         out.append((name, target))
