@@ -196,18 +196,23 @@ def test_errors_against_the_truth_are_within_the_stated_sigmas(mode):
     z: dict[str, list[float]] = {}
     for seed in range(runs):
         first = api.run("terrain", "synthetic", seed=100 + seed, mode=mode, estimators="navigation,gtsam-ba").first
-        m = tm.from_run(first)
-        sc = first.scene
-        truth = tm.Model("truth", sc.dem, sc.k, sc.position[1], sc.angles[1], None)
-        for a, b in zip(ms.measure(m, POINTS, LINES, POLYGONS), ms.measure(truth, POINTS, LINES, POLYGONS),
-                        strict=True):
-            for q, r in zip(a.quantities, b.quantities, strict=True):
-                z.setdefault(f"{a.kind} {q.name}", []).append((q.value - r.value) / q.sigma)
+        _add_z_scores(z, first, POINTS, LINES, POLYGONS)
     lo, hi = chi2.ppf(0.0005, runs) / runs, chi2.ppf(0.9995, runs) / runs
     for name, values in z.items():
         assert lo < np.mean(np.square(values)) < hi, (name, np.round(values, 2))
     every = np.abs(np.concatenate(list(z.values())))
     assert np.mean(every < 2.5) >= 0.95, np.sort(every)[-10:]
+
+
+def _add_z_scores(z: dict[str, list[float]], first, points, lines, polygons) -> None:
+    """Each quantity's error (the run's model against the same pixels under the true orientation)
+    over its sigma, appended to ``z`` under ``"<kind> <quantity>"``."""
+    sc = first.scene
+    truth = tm.Model("truth", sc.dem, sc.k, sc.position[1], sc.angles[1], None)
+    found = ms.measure(tm.from_run(first), points, lines, polygons)
+    for a, b in zip(found, ms.measure(truth, points, lines, polygons), strict=True):
+        for q, r in zip(a.quantities, b.quantities, strict=True):
+            z.setdefault(f"{a.kind} {q.name}", []).append((q.value - r.value) / q.sigma)
 
 
 def _z_scores(scenario: str, runs: int, **overrides) -> dict[str, list[float]]:
@@ -218,16 +223,11 @@ def _z_scores(scenario: str, runs: int, **overrides) -> dict[str, list[float]]:
     z: dict[str, list[float]] = {}
     for run in range(runs):
         first = exp.run_once(cfg, run, exp.select("navigation,gtsam-ba"))
-        sc = first.scene
-        truth = tm.Model("truth", sc.dem, sc.k, sc.position[1], sc.angles[1], None)
-        m = tm.from_run(first)
-        w, h = sc.k.width - 1, sc.k.height - 1
+        w, h = first.scene.k.width - 1, first.scene.k.height - 1
         pts = [f"{0.25 * w:g},{0.35 * h:g}", f"{0.75 * w:g},{0.7 * h:g}"]
         lines = [f"{0.1 * w:g},{0.1 * h:g}:{0.9 * w:g},{0.85 * h:g}"]
         polys = [f"{0.2 * w:g},{0.15 * h:g}:{0.8 * w:g},{0.15 * h:g}:{0.8 * w:g},{0.85 * h:g}:{0.2 * w:g},{0.85 * h:g}"]
-        for a, b in zip(ms.measure(m, pts, lines, polys), ms.measure(truth, pts, lines, polys), strict=True):
-            for q, r in zip(a.quantities, b.quantities, strict=True):
-                z.setdefault(f"{a.kind} {q.name}", []).append((q.value - r.value) / q.sigma)
+        _add_z_scores(z, first, pts, lines, polys)
     return z
 
 
