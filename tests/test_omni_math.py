@@ -139,6 +139,33 @@ def test_integrate_is_the_step_by_step_recursion_7():
     assert np.allclose(phi, prod)
     assert all(np.linalg.eigvalsh(c).min() > -1e-15 for c in covs)
 
+def test_a_command_switching_at_an_unknown_time_is_the_mean_with_its_variance():
+    """real.between: a command u0 replaced by u1 at a time uniform in the step runs, on average,
+    (u0 + u1) / 2 with variance (u1 - u0)^2 / 12; checked against 200,000 drawn switch times, and
+    the heading's variance through Motion.propagate against the drawn headings' variance."""
+    from workbench.experiments.omni.real import between
+
+    cmds = np.array([[0.086, 0.408], [0.0, 0.0], [0.0, 0.0], [0.07, -0.2]])
+    mean, var = between(cmds)
+    np.testing.assert_allclose(mean, [[0.043, 0.204], [0.0, 0.0], [0.035, -0.1]])
+    np.testing.assert_allclose(var, [[0.086**2 / 12, 0.408**2 / 12], [0.0, 0.0], [0.07**2 / 12, 0.04 / 12]])
+    held, none = between(cmds, "hold")
+    np.testing.assert_array_equal(held, cmds[:-1])
+    assert none is None
+
+    rng = np.random.default_rng(3)
+    dt = 0.76
+    tau = rng.uniform(0.0, dt, 200_000)  # the switch's time in the step
+    turned = cmds[0, 1] * tau + cmds[1, 1] * (dt - tau)
+    assert turned.mean() / dt == pytest.approx(mean[0, 1], rel=2e-3)
+    m = Motion("unicycle", 0.0, (0.0, 0.0), per_second=True)
+    _, covs, _ = m.propagate(np.zeros(3), np.zeros((3, 3)), mean[:1], np.array([dt]), var[:1])
+    assert covs[-1][2, 2] == pytest.approx(turned.var(), rel=1e-2)
+    assert covs[-1][0, 0] == pytest.approx((dt * cmds[0, 0]) ** 2 / 12, rel=1e-9)  # along the heading 0
+    _, plain, _ = m.propagate(np.zeros(3), np.zeros((3, 3)), mean[:1], np.array([dt]))
+    assert np.all(plain[-1] == 0.0)
+
+
 
 # --- the simulation ----------------------------------------------------------------------
 

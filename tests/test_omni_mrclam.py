@@ -363,6 +363,31 @@ def test_real_odometry_yaw_rate_leads_truth(real):
 
 
 @needs_data
+def test_real_gaps_read_as_a_switch_at_an_unknown_time(real):
+    """Across the log's gaps (rows over 0.1 s apart) the switch reading's heading change, over the
+    sigma it predicts (the density's and the switch's), squared, averages near 1 on every robot;
+    on robot 4, whose gaps carry a quarter of its distance, holding the command before a gap
+    runs a third too far against the Vicon and the switch's mean within 10 %."""
+    from workbench.experiments.omni.real import between
+
+    log, _ = real
+    t, cmds = log.odom_t, np.column_stack([log.odom_v, log.odom_w])
+    dt = np.diff(t)
+    mean, var = between(cmds)
+    gap = np.flatnonzero(dt > 0.1)
+    a, b = log.truth_at(t[gap]), log.truth_at(t[gap + 1])
+    ok = np.isfinite(a[:, 2]) & np.isfinite(b[:, 2])
+    gap, a, b = gap[ok], a[ok], b[ok]
+    turned = wrap(b[:, 2] - a[:, 2])
+    predicted = np.deg2rad(2.0) ** 2 * dt[gap] + var[gap, 1] * dt[gap] ** 2 + np.deg2rad(0.5) ** 2  # + the Vicon's
+    z2 = (mean[gap, 1] * dt[gap] - turned) ** 2 / predicted
+    assert 0.5 < z2.mean() < 2.0, z2.mean()
+    if log.robot == 4:
+        moved = np.hypot(*(b[:, :2] - a[:, :2]).T).sum()
+        assert np.sum(cmds[gap, 0] * dt[gap]) > 1.3 * moved
+        assert abs(np.sum(mean[gap, 0] * dt[gap]) / moved - 1.0) < 0.1
+
+@needs_data
 def test_a_quirky_real_log_runs_with_its_repairs_said(tmp_path):
     """Robot 1's real files with two quirks written in (its first odometry sample stamped after
     the second, a last line cut short) run through the command line: one warning line per repair,

@@ -127,11 +127,10 @@ def associate(data: OmniData, cfg: OmniConfig, track_gate: float | None = None) 
     gate = chi2_quantile(p_gate, 1)
     tr = Tracks(np.full(m, -1), np.full(m, -1))
     last_seen: dict[int, tuple[float, np.ndarray]] = {}  # pending line -> (bearing, pose) when last seen
-    dt = data.dt
     last = 0
     for step, idx in data.epochs():
         if step > last:
-            f.predict(data.controls[last:step], dt[last:step])
+            f.predict(*data.odometry(last, step))
             last = step
         b = data.meas_bearing[idx]
         free = _match_mapped(f, tr, idx, b, gate)

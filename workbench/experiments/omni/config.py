@@ -26,6 +26,9 @@ IMAGE_SIGMA_BEARING_DEG = 0.3
 # EKF on its innovation, the graph against its last LM pass carried on with the odometry:
 # misread barcodes, robot 3 at 255 s), and the graph takes a damped LM pass every 20 s
 # (iSAM2's undamped steps run away here).
+ODOMETRY_BETWEEN = ("switch", "hold")
+"""How a real log's velocity command is read between two logged rows (:mod:`.real`)."""
+
 SCENARIOS: dict[str, Scenario] = {s.name: s for s in (
     Scenario("paper", "the paper's 500 s simulation: 80 x 80 m room, 24 wall lines and 8 pillars, 3 m/s"),
     Scenario("mrclam", "the real robots of UTIAS MRCLAM dataset 6 (unicycle odometry, forward camera)",
@@ -86,6 +89,7 @@ class OmniConfig:
     ekf_second_order: bool = by_scenario(False)
     start_time: float | None = None
     end_time: float | None = None
+    odometry_between: str = "switch"
     estimators: tuple[str, ...] = ()  # () = the experiment's defaults
 
     def __post_init__(self) -> None:
@@ -158,6 +162,8 @@ class OmniConfig:
                 f"--lm-every must be >= 0 s (got {self.lm_every})")
         require(math.isfinite(self.huber) and self.huber >= 0.0, f"--huber must be >= 0 sigmas (got {self.huber})")
         require(self.ekf_init in ("ut", "linear"), f"--ekf-init must be ut or linear (got {self.ekf_init!r})")
+        require(self.odometry_between in ODOMETRY_BETWEEN,
+                f"--odometry-between must be one of {', '.join(ODOMETRY_BETWEEN)} (got {self.odometry_between!r})")
         return self
 
     def to_json(self) -> dict:
@@ -199,6 +205,8 @@ OPTIONS: tuple[Option, ...] = (
     Option("robot", "mrclam: the robot, 1..5 where the folder has it.", int),
     Option("start_time", "mrclam: start this many seconds into the log."),
     Option("end_time", "mrclam: end this many seconds into the log."),
+    Option("odometry_between", "mrclam: the command between two logged ones: switch (at an unknown "
+           "time: their mean, with the variance of not knowing when) | hold (the earlier one).", str),
     Option("noise_per_second", "Odometry noise as densities or per step.", bool,
            switch="--noise-per-second/--noise-per-step"),
     Option("lm_every", "GTSAM: a damped LM pass every this many s (0 = off)."),

@@ -79,9 +79,11 @@ class BearingEkf:
         self.attempts: list = []
 
     # --- (7)-(8) ---------------------------------------------------------------------------
-    def predict(self, controls: np.ndarray, dt: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Propagate over ``len(controls)`` steps; returns the poses and pose covariances."""
-        poses, covs, phi = self.data.motion.propagate(self.x[:3], self.P[:3, :3], controls, dt)
+    def predict(self, controls: np.ndarray, dt: np.ndarray, control_var: np.ndarray | None = None
+                ) -> tuple[np.ndarray, np.ndarray]:
+        """Propagate over ``len(controls)`` steps (:meth:`.scenario.OmniData.odometry`'s three
+        arrays); returns the poses and pose covariances."""
+        poses, covs, phi = self.data.motion.propagate(self.x[:3], self.P[:3, :3], controls, dt, control_var)
         self.x[:3] = poses[-1]
         self.P[:3, :3] = covs[-1]
         if len(self.x) > 3:
@@ -303,7 +305,6 @@ def run(data: OmniData, cfg: OmniConfig, augmentation: str, name: str, trace: bo
     poses = np.empty((K + 1, 3))
     covs = np.empty((K + 1, 3, 3))
     poses[0], covs[0] = f.x[:3], f.P[:3, :3]
-    dt = data.dt
     epochs = data.epochs()
     map_steps = np.array([s for s, _ in epochs], int)
     map_mean = np.full((len(epochs), N, 2), np.nan)
@@ -312,7 +313,7 @@ def run(data: OmniData, cfg: OmniConfig, augmentation: str, name: str, trace: bo
     last = 0
     for e, (step, idx) in enumerate(epochs):
         if step > last:
-            poses[last + 1:step + 1], covs[last + 1:step + 1] = f.predict(data.controls[last:step], dt[last:step])
+            poses[last + 1:step + 1], covs[last + 1:step + 1] = f.predict(*data.odometry(last, step))
             last = step
         lms, bearings = data.meas_lm[idx], data.meas_bearing[idx]
         known = f.slot[lms] >= 0
@@ -337,7 +338,7 @@ def run(data: OmniData, cfg: OmniConfig, augmentation: str, name: str, trace: bo
                 for b in range(2):
                     map_cov[e, on, a, b] = f.P[o + a, o + b]
     if K > last:
-        poses[last + 1:], covs[last + 1:] = f.predict(data.controls[last:], dt[last:])
+        poses[last + 1:], covs[last + 1:] = f.predict(*data.odometry(last))
     return SlamEstimate(name, np.arange(K + 1), poses, covs, map_steps, map_mean, map_cov,
                         f.first_seen, f.init_step, failures=f.failures, gated_bearings=np.array(f.gated, int),
                         attempts=f.attempts)
@@ -345,7 +346,7 @@ def run(data: OmniData, cfg: OmniConfig, augmentation: str, name: str, trace: bo
 
 def odometry(data: OmniData, name: str = "odometry") -> SlamEstimate:
     """Dead reckoning (7)-(8) alone: no map."""
-    poses, covs, _ = data.motion.propagate(data.start, data.start_cov, data.controls, data.dt)
+    poses, covs, _ = data.motion.propagate(data.start, data.start_cov, *data.odometry())
     n = len(data.landmarks)
     return SlamEstimate(name, np.arange(len(poses)), poses, covs, np.zeros(0, int), np.zeros((0, n, 2)),
                         None, np.full(n, -1), np.full(n, -1))

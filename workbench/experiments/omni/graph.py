@@ -75,7 +75,7 @@ def keyframes(data: OmniData, cfg: OmniConfig) -> Keyframes:
     zero = np.zeros(3)
     dt = data.dt
     for a, b in zip(steps[:-1], steps[1:], strict=True):
-        poses, covs, _ = data.motion.propagate(zero, np.zeros((3, 3)), data.controls[a:b], dt[a:b])
+        poses, covs, _ = data.motion.propagate(zero, np.zeros((3, 3)), *data.odometry(a, b))
         rel = poses[-1]
         cov = _to_body(covs[-1], rel[2]) + FLOOR * np.eye(3)
         between.append((gtsam.Pose2(rel[0], rel[1], rel[2]), cov))

@@ -79,24 +79,35 @@ class Motion:
             fu[:, 2, 1] = dt
         return fr, fu
 
-    def step_noise(self, fu: np.ndarray, dt: np.ndarray | float | None = None) -> np.ndarray:
-        """``F_U U F_U' + Q`` per step, ``(K, 3, 3)`` (``dt`` is needed only ``per_second``)."""
+    def step_noise(self, fu: np.ndarray, dt: np.ndarray | float | None = None,
+                   control_var: np.ndarray | None = None) -> np.ndarray:
+        """``F_U U F_U' + Q`` per step, ``(K, 3, 3)`` (``dt`` is needed only ``per_second``).
+
+        ``control_var (K, 2)``, if given, is each step's own extra variance of its control (not a
+        density: the variance of the step's mean control, as :attr:`.scenario.OmniData.control_var`
+        holds it), added to ``U`` as ``F_U diag(control_var) F_U'``.
+        """
         u = np.diag(np.square(self.sigma_u))
         q = np.diag(np.square(self.sigma_q))
         if not self.per_second:
-            return fu @ u @ fu.transpose(0, 2, 1) + q
-        dt = np.broadcast_to(np.asarray(dt, float), (len(fu),))
-        with np.errstate(divide="ignore", invalid="ignore"):
-            scale = np.where(dt > 0, 1.0 / dt, 0.0)
-        return scale[:, None, None] * (fu @ u @ fu.transpose(0, 2, 1)) + dt[:, None, None] * q
+            noise = fu @ u @ fu.transpose(0, 2, 1) + q
+        else:
+            dt = np.broadcast_to(np.asarray(dt, float), (len(fu),))
+            with np.errstate(divide="ignore", invalid="ignore"):
+                scale = np.where(dt > 0, 1.0 / dt, 0.0)
+            noise = scale[:, None, None] * (fu @ u @ fu.transpose(0, 2, 1)) + dt[:, None, None] * q
+        if control_var is not None:
+            noise = noise + (fu * np.asarray(control_var, float)[:, None, :]) @ fu.transpose(0, 2, 1)
+        return noise
 
-    def propagate(self, start: np.ndarray, cov: np.ndarray, controls: np.ndarray, dt: np.ndarray
-                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def propagate(self, start: np.ndarray, cov: np.ndarray, controls: np.ndarray, dt: np.ndarray,
+                  control_var: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Dead reckoning with (8): poses ``(K+1, 3)``, covariances ``(K+1, 3, 3)`` and the
-        product ``Phi = F_R[K-1] ... F_R[0]`` (what the cross-covariances need)."""
+        product ``Phi = F_R[K-1] ... F_R[0]`` (what the cross-covariances need); ``control_var``
+        as in :meth:`step_noise`."""
         poses = self.integrate(start, controls, dt)
         fr, fu = self.jacobians(poses[:-1], controls, dt)
-        noise = self.step_noise(fu, dt)
+        noise = self.step_noise(fu, dt, control_var)
         covs = np.empty((len(poses), 3, 3))
         covs[0] = cov
         p = cov

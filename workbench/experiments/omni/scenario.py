@@ -28,7 +28,10 @@ class OmniData:
     ``meas_step[i]`` of landmark index ``meas_lm[i]`` (a row of ``landmarks``), with noise
     ``sigma_bearing`` (rad). ``truth (K, 3)`` and ``landmarks (N, 2)`` are for evaluation: an
     estimator must not read them. ``grid`` are the steps every estimator is scored at (the
-    bearing epochs, and one at least every ``keyframe_every`` seconds).
+    bearing epochs, and one at least every ``keyframe_every`` seconds). ``control_var (K, 2)``,
+    where the log leaves a step's control uncertain beyond ``motion``'s noise (a gap in a real
+    log, :mod:`.real`), is that step's own extra variance of its (mean) control; ``None``: none.
+    Estimators read a stretch of odometry with :meth:`odometry`.
     """
 
     t: np.ndarray
@@ -49,10 +52,19 @@ class OmniData:
     walls: np.ndarray | None = None
     grid: np.ndarray | None = None
     repairs: dict | None = None   # what a real log needed to be read (mrclam.MrclamLog.repairs), and its drops
+    control_var: np.ndarray | None = None
 
     @property
     def dt(self) -> np.ndarray:
         return np.diff(self.t)
+
+    def odometry(self, a: int = 0, b: int | None = None
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+        """Steps ``a`` to ``b``'s controls, durations and extra control variances (or ``None``),
+        the arguments of :meth:`.motion.Motion.propagate` after the start."""
+        b = self.steps if b is None else b
+        var = None if self.control_var is None else self.control_var[a:b]
+        return self.controls[a:b], np.diff(self.t[a:b + 1]), var
 
     @property
     def steps(self) -> int:
