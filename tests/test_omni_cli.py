@@ -221,9 +221,10 @@ def test_from_images_needs_the_simulation(tmp_path):
 @pytest.mark.skipif(not (DATA / "mrclam6").is_dir(), reason="real MRCLAM data not present")
 def test_robot3_misreads_are_gated_and_the_smoother_holds():
     """Robot 3 of dataset 6 reads landmark 11's barcode as 20's four times at 255 s (172 deg
-    from where 20 is): the grown graph's gate leaves them out (and about 1 % of the rest), and
-    the batch smoother ends within 0.5 m (RMS) of the truth, its heading within 5 deg; without
-    the gate it turned the whole trajectory by 50 deg (3 m RMS)."""
+    from where 20 is): the gate leaves them out (the grown graph's 1 % of the rest come back when
+    the batch re-gates against its own answer: under 0.5 % stay out), and the batch smoother ends
+    within 0.5 m (RMS) of the truth, its heading within 5 deg; without the gate it turned the
+    whole trajectory by 50 deg (3 m RMS)."""
     import warnings
 
     from workbench.estimation.angles import wrap
@@ -238,7 +239,7 @@ def test_robot3_misreads_are_gated_and_the_smoother_holds():
     t = data.t[data.meas_step[est.gated_bearings]]
     misread = (data.landmark_ids[data.meas_lm] == 20) & (np.abs(data.t[data.meas_step] - 255.5) < 1.0)
     assert misread.sum() == 4 and set(np.flatnonzero(misread)) <= set(est.gated_bearings.tolist())
-    assert len(t) < 0.03 * len(data.meas_lm)
+    assert len(t) < 0.005 * len(data.meas_lm)
     truth = data.truth[est.steps]
     ok = np.isfinite(truth).all(axis=1)
     pos = np.hypot(*(est.pose[ok, :2] - truth[ok, :2]).T)

@@ -577,6 +577,13 @@ def batch(data: OmniData, cfg: OmniConfig, kf: Keyframes | None = None,
     the paper's simulation; on MRCLAM it drifts tens of degrees and LM stops in a wrong
     minimum (2.8 m RMSE on robot 1). iSAM2's answer makes a poor start there too: it is the
     causal estimate, off by metres at the end of blind stretches.
+
+    The grown graph's gate (``nis_gate``) judged each bearing against a prediction; the batch
+    then re-gates every bearing against its own smoothed answer and solves again, until the
+    verdict stands (at most ``REGATE_ROUNDS`` times): a good bearing left out while the
+    prediction was off comes back. On MRCLAM 6 the left-out bearings go from 52-113 to 0-5 on
+    robots 3-5 (robot 3's four misreads and robot 5's stay out) and robot 4's RMSE from 0.48 to
+    0.43 m.
     """
     kf = kf or keyframes(data, cfg)
     n_lm, E = len(data.landmarks), len(kf.steps)
@@ -608,22 +615,83 @@ def batch(data: OmniData, cfg: OmniConfig, kf: Keyframes | None = None,
             values.insert(L(lm), point)
             init_step[lm] = kf.steps[e]
     result = gtsam.LevenbergMarquardtOptimizer(graph, values, _lm_params(100)).optimize()
+    covs, lm_cov = _batch_marginals(graph, result, E, marks.inserted)
+    for _ in range(REGATE_ROUNDS if cfg.nis_gate > 0.0 else 0):
+        again = _regate(data, cfg, kf, result, covs, lm_cov, marks.inserted)
+        if again == rejected:
+            break
+        rejected = again
+        graph = gtsam.NonlinearFactorGraph()
+        graph.add(_prior(data))
+        for e in range(1, E):
+            odo, cov = kf.between[e - 1]
+            graph.add(gtsam.BetweenFactorPose2(X(e - 1), X(e), odo, _noise(cov)))
+        for e in range(E):
+            for lm, b in zip(*kf.bearings[e], strict=True):
+                if marks.inserted[int(lm)] and (e, int(lm)) not in rejected:
+                    graph.add(marks.factor(e, int(lm), float(b)))
+        result = gtsam.LevenbergMarquardtOptimizer(graph, result, _lm_params(100)).optimize()
+        covs, lm_cov = _batch_marginals(graph, result, E, marks.inserted)
     poses = np.array([_pose(result.atPose2(X(e))) for e in range(E)])
-    try:
-        marginals = gtsam.Marginals(graph, result)
-        covs = np.array([marginals.marginalCovariance(X(e)) for e in range(E)])
-        lm_cov = np.full((n_lm, 2, 2), np.nan)
-        for lm in np.flatnonzero(marks.inserted):
-            lm_cov[lm] = marginals.marginalCovariance(L(int(lm)))
-    except RuntimeError:
-        covs = np.full((E, 3, 3), np.nan)
-        lm_cov = np.full((n_lm, 2, 2), np.nan)
     mean = np.full((n_lm, 2), np.nan)
     for lm in np.flatnonzero(marks.inserted):
         mean[lm] = result.atPoint2(L(int(lm)))
     return SlamEstimate("gtsam-batch", kf.steps.copy(), poses, to_world(covs, poses[:, 2]),
                         np.array([kf.steps[-1]]), mean[None], lm_cov[None], first_seen, init_step,
                         gated_bearings=gated_indices(data, kf, rejected))
+
+
+REGATE_ROUNDS = 3
+"""How many times the batch re-gates every bearing against its own smoothed answer."""
+
+
+def _batch_marginals(graph: gtsam.NonlinearFactorGraph, result: gtsam.Values, E: int, inserted: np.ndarray
+                     ) -> tuple[np.ndarray, np.ndarray]:
+    """Every keyframe pose's ``(E, 3, 3)`` (body frame) and landmark's ``(N, 2, 2)`` marginal; NaN
+    where GTSAM cannot compute them."""
+    lm_cov = np.full((len(inserted), 2, 2), np.nan)
+    try:
+        marginals = gtsam.Marginals(graph, result)
+        covs = np.array([marginals.marginalCovariance(X(e)) for e in range(E)])
+        for lm in np.flatnonzero(inserted):
+            lm_cov[lm] = marginals.marginalCovariance(L(int(lm)))
+    except RuntimeError:
+        covs = np.full((E, 3, 3), np.nan)
+    return covs, lm_cov
+
+
+def _regate(data: OmniData, cfg: OmniConfig, kf: Keyframes, result: gtsam.Values, covs: np.ndarray,
+            lm_cov: np.ndarray, inserted: np.ndarray) -> set[tuple[int, int]]:
+    """The bearings ``(keyframe, landmark)`` the chi-square gate (``nis_gate``) leaves out against
+    the smoothed answer: each one's residual at ``result`` over its variance there (the pose's and
+    the landmark's marginals, their correlation ignored, plus the bearing's own). The grown
+    graph gated causally, against a prediction; a bearing it left out while its prediction was
+    off comes back here, and one it took in that the whole run disagrees with goes."""
+    gate = chi2_quantile(cfg.nis_gate, 1)
+    out = set()
+    for e in range(len(kf.steps)):
+        lms, bearings = kf.bearings[e]
+        if len(lms) == 0:
+            continue
+        pose = _pose(result.atPose2(X(e)))
+        pose_cov = to_world(covs[e][None], np.array([pose[2]]))[0]
+        for lm, b in zip(lms, bearings, strict=True):
+            lm = int(lm)
+            if not inserted[lm]:
+                continue
+            d = np.asarray(result.atPoint2(L(lm))) - pose[:2]
+            q = float(d @ d)
+            r = float(wrap(b - (math.atan2(d[1], d[0]) - pose[2])))
+            h_pose = np.array([d[1] / q, -d[0] / q, -1.0])
+            h_point = np.array([-d[1], d[0]]) / q
+            s = data.sigma_bearing ** 2
+            if np.isfinite(pose_cov).all():
+                s += float(h_pose @ pose_cov @ h_pose)
+            if np.isfinite(lm_cov[lm]).all():
+                s += float(h_point @ lm_cov[lm] @ h_point)
+            if r * r > gate * s:
+                out.add((e, lm))
+    return out
 
 
 def gated_indices(data: OmniData, kf: Keyframes, rejected: set[tuple[int, int]]) -> np.ndarray:
