@@ -23,7 +23,10 @@ the speed is over-reported by several per cent of 7 cm/s). No scale or lag corre
 applied to the odometry: the README's 5-18 % over-reported turning and 0.16 s lead were
 measured against the Vicon, which the estimators must not use, and over the stretches that
 matter here (up to 20-40 s between sightings) the heading error grows like a random walk,
-not like a scale error.
+not like a scale error. The bearings do measure both (a tracked landmark's bearing turns at
+minus the turn rate, to first order): 0.22-0.32 s and 6-17 % on dataset 6's robots, against
+the Vicon's 0.18-0.22 s and 6-13 %; but correcting either moved some robots' smoother from
+0.14 to 0.37 m or into a wrong minimum (the README's MRCLAM section), so neither is applied.
 """
 
 from __future__ import annotations
