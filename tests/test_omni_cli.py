@@ -129,6 +129,38 @@ def test_mrclam_folder_runs_every_estimator(tmp_path):
     assert stats["estimators"]["odometry"]["rmse"]["position"] < 0.05  # the odometry is exact here
 
 
+def test_a_gap_in_the_commands_is_read_as_a_switch_and_shown(tmp_path):
+    """The tiny robot stops for good at 10 s, but its log has no row from 9.5 s to 10.5 s: the
+    switch reading runs the gap at half speed (the truth here: stopping at the gap's middle),
+    the odometry ends within 1 cm of the truth, and the recording plots the heading sigma the
+    gap's unknown switch adds, at the gap; holding the command before the gap runs 10 cm on."""
+    def stop_at_10s(d):
+        head = "# x\n# x\n# x\n# x\n"
+        t = np.arange(0.0, 20.0, 0.02)
+        t = t[(t < 9.5) | (t > 10.5)]
+        rows = "".join(f"{x:.3f} {0.2 if x < 10 else 0.0} {0.1 if x < 10 else 0.0}\n" for x in t)
+        (d / "Robot1_Odometry.dat").write_text(head + rows)
+        fine = np.arange(0.0, 20.0, 0.001)  # the truth: the unicycle at 0.2 m/s, 0.1 rad/s, stopped at 10 s
+        moving = fine < 10.0
+        heading = np.cumsum(np.where(moving, 0.1, 0.0)) * 0.001
+        x = np.cumsum(np.where(moving, 0.2 * np.cos(heading), 0.0)) * 0.001
+        y = np.cumsum(np.where(moving, 0.2 * np.sin(heading), 0.0)) * 0.001
+        (d / "Robot1_Groundtruth.dat").write_text(head + "".join(
+            f"{fine[i]:.3f} {x[i]:.6f} {y[i]:.6f} {heading[i]:.6f}\n" for i in range(0, len(fine), 20)))
+
+    d = _mrclam_copy(tmp_path, stop_at_10s)
+    ends = {}
+    for how in ("switch", "hold"):
+        out, m = tmp_path / f"{how}.rrd", tmp_path / f"{how}.json"
+        r = wb("omni", "--scenario", "mrclam", "--data", str(d), "--estimators", "odometry", "--out", str(out),
+               "--metrics", str(m), "--odometry-between", how)
+        assert r.returncode == 0, r.stderr
+        ends[how] = json.loads(m.read_text())["estimators"]["odometry"]["final"]["position"]
+        rows = readback.row_counts(out)
+        assert rows.get("/odometry/switch/switch_heading_sigma", 0) == (1 if how == "switch" else 0)
+    # the switch's mean runs the gap's distance (on the arc, to a millimetre); holding runs 0.5 s on
+    assert ends["switch"] < 0.01 and ends["hold"] > 0.05
+
 def _backwards(d):
     """Time running back by a minute (two rows swapped are put back in order: test_omni_mrclam)."""
     p = d / "Robot1_Odometry.dat"

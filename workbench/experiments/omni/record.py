@@ -60,7 +60,8 @@ def plots(first: RunResult, runs: list[RunSummary]) -> dict[str, views.Curves]:
                     c.series[key] = values
                     c.fixed += (key,)
                     c.labels[key] = f"Cramér-Rao, {key[6:]}"
-    return {
+    out = _switch_curves(first.data)
+    return out | {
         "/errors/position": curves({n: np.hypot(v[:, 0], v[:, 1]) for n, v in e.items()}, "m"),
         "/errors/heading": curves({n: np.degrees(v[:, 2]) for n, v in e.items()}, "deg"),
         "/nees": curves(dict(zero.nees), "", one),
@@ -70,6 +71,26 @@ def plots(first: RunResult, runs: list[RunSummary]) -> dict[str, views.Curves]:
         "/monte_carlo/heading": heading,
         "/monte_carlo/nees": curves({n: c["nees"] for n, c in mc.items()}, "", many),
     }
+
+
+SWITCH_SHOWN = 0.05
+"""The smallest heading sigma (deg) of a step's unknown command switch the odometry plot shows."""
+
+
+def _switch_curves(d) -> dict[str, views.Curves]:
+    """A real log's odometry steps whose command switched at a time the log does not say
+    (:func:`.real.between`): the heading sigma that adds over the step (deg), at the step's start,
+    where it is at least ``SWITCH_SHOWN``; the estimators lean on the bearings there."""
+    if d.control_var is None:
+        return {}
+    dt = np.diff(d.t)
+    sigma = np.degrees(np.sqrt(d.control_var[:, 1]) * dt)
+    shown = sigma >= SWITCH_SHOWN
+    if not shown.any():
+        return {}
+    key = "switch_heading_sigma"
+    return {"/odometry/switch": views.Curves(d.t[:-1][shown], {key: sigma[shown]}, "deg", (),
+                                             {key: "heading sigma of the command's unknown switch"})}
 
 
 def blueprint(names: list[str], scene: np.ndarray, curves: dict[str, views.Curves], with_images: bool = False,
@@ -94,11 +115,12 @@ def blueprint(names: list[str], scene: np.ndarray, curves: dict[str, views.Curve
         plot("/nees", "pose NEES (3 dof), grey: 95 % band", legend=False),
         name="run 0",
     )
-    sigmas = rrb.Vertical(
-        plot("/sigma/position", "own sigma, position (m)"),
-        plot("/sigma/heading", "own sigma, heading (deg)", legend=False),
-        name="own sigmas (run 0)",
-    )
+    sigmas = [plot("/sigma/position", "own sigma, position (m)"),
+              plot("/sigma/heading", "own sigma, heading (deg)", legend=False)]
+    if "/odometry/switch" in curves:
+        sigmas.append(plot("/odometry/switch", "odometry: the heading sigma (deg) a step's command adds when the "
+                           "log does not say when it switched (gaps between logged commands)", legend=False))
+    sigmas = rrb.Vertical(*sigmas, name="own sigmas (run 0)")
     mc = rrb.Vertical(
         plot("/monte_carlo/position", "RMS position error over runs (m), grey: Cramér-Rao bounds"),
         plot("/monte_carlo/heading", "RMS heading error over runs (deg)", legend=False),
@@ -248,7 +270,10 @@ def how_to_read(first: RunResult, runs: int) -> str:
         "(misread barcodes, outliers) as red rays, and (the filters) the unscented-transform "
         "sigma points of each landmark initialisation try in orange.",
         f"- run 0: position and heading error, and the pose NEES (3 dof) with its one-run 95 % band "
-        f"({one[0]:.2f}-{one[1]:.2f}); own sigmas: the standard deviations each estimator claims.",
+        f"({one[0]:.2f}-{one[1]:.2f}); own sigmas: the standard deviations each estimator claims"
+        + ("; below them (a real log), the heading sigma each odometry step adds where a logged command "
+           "switched at a time the log does not say (its gaps): there the estimators lean on the bearings."
+           if first.data.control_var is not None else "."),
         f"- over runs ({runs} runs): RMS position and heading error at each step, and the ANEES with its 95 % band "
         f"({many[0]:.2f}-{many[1]:.2f}): inside it the covariance is consistent with the errors, above it the "
         "estimator is overconfident; beside the RMS errors the Cramér-Rao bounds of a filter (light grey) and a "
