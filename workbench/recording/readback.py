@@ -94,6 +94,10 @@ def rgb(packed: int) -> tuple[int, int, int]:
     return (packed >> 24) & 255, (packed >> 16) & 255, (packed >> 8) & 255
 
 
+FOOTED = (0, 41)
+"""The Rerun version (major, minor) from which a recording file ends with a footer."""
+
+
 def check_recording(path: Path) -> None:
     """A one-line :class:`~workbench.errors.WorkbenchError` unless ``path`` is a readable
     Rerun recording with something in it (not empty, not truncated, not another kind of file)."""
@@ -104,17 +108,22 @@ def check_recording(path: Path) -> None:
         raise WorkbenchError(f"no such recording: {path}")
     try:
         with open(path, "rb") as f:
-            head = f.read(4)
+            head = f.read(8)  # "RRF2", then the writer's Rerun version (major, minor, patch, 0)
     except OSError as exc:
         raise WorkbenchError(f"cannot read {path}: {exc.strerror}") from None
-    if head != b"RRF2":
+    if head[:4] != b"RRF2":
         raise WorkbenchError(f"{path} is not a Rerun recording (.rrd)")
     try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")  # "no footer": a legacy or cut file, read by a whole-file scan
+        with warnings.catch_warnings(record=True) as said:
+            warnings.simplefilter("always")  # "no footer": a legacy or cut file, read by a whole-file scan
             chunks = sum(1 for _ in RrdReader(str(path)).stream())
     except Exception as exc:  # the reader's errors on a damaged file
         raise WorkbenchError(f"{path} is a damaged recording: {str(exc).splitlines()[0] if str(exc) else exc}"
                              ) from None
+    if len(head) >= 6 and (head[4], head[5]) >= FOOTED and any("no footer" in str(w.message) for w in said):
+        # a file cut exactly between two messages reads as a shorter one; only its missing footer
+        # (which writers from Rerun 0.41 on always end with) tells
+        raise WorkbenchError(f"{path} is a damaged recording: it ends without the footer its writer "
+                             f"(Rerun {head[4]}.{head[5]}) puts last, so it was cut short")
     if chunks == 0:
         raise WorkbenchError(f"{path} is an empty recording")

@@ -115,12 +115,17 @@ class OmniConfig:
         """The memory a run will need (for :mod:`workbench.experiments.limits`): ~0.5 kB a
         simulation step (measured: +7 MB from 4,000 to 20,000 steps), ~20 kB a keyframe (the
         graphs and their marginals), and each run's summary on the keyframe grid (five
-        estimators, a dozen numbers each) that the parent keeps."""
+        estimators, a dozen numbers each) that the parent keeps; with ``N`` landmarks (the
+        simulation's wall lines and pillars), the EKF's ``(3 + 2N)^2`` covariance and, at every
+        keyframe, a bearing and a mapped mean and covariance per landmark (~100 bytes)."""
         steps = self.duration / self.dt + 1
         keyframes = self.duration * (self.bearing_rate + 1.0 / self.keyframe_every) + 1
         images = keyframes * self.image_size ** 2 if self.from_images else 0.0
-        need = 3e8 + 500.0 * steps + 2e4 * keyframes + images + 500.0 * keyframes * self.runs
-        return need, f"{steps:.3g} steps (--duration / --dt), {keyframes:.3g} keyframes, {self.runs} run(s)"
+        n = float(self.wall_lines + self.pillars) if self.scenario == "paper" else 15.0
+        need = (3e8 + 500.0 * steps + 2e4 * keyframes + images + 500.0 * keyframes * self.runs
+                + 8.0 * (3.0 + 2.0 * n) ** 2 + 100.0 * n * keyframes)
+        return need, (f"{steps:.3g} steps (--duration / --dt), {keyframes:.3g} keyframes, {n:.3g} landmarks "
+                      f"(--wall-lines + --pillars), {self.runs} run(s)")
 
     def validate(self) -> OmniConfig:
         """Raise a one-line :class:`WorkbenchError` on any value out of range."""
