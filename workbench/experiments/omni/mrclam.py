@@ -31,8 +31,9 @@ Readings taken here (say so where a caller might assume otherwise):
   a last line cut short (a log whose writer stopped mid-line) is left out; odometry and
   ground truth that repeat a time stamp (robot 2's odometry does once) keep the last row of
   each repeat, so their times are strictly increasing; gaps in the odometry over
-  ``GAP`` seconds are counted (the motion model's noise grows with a step's duration, so
-  they need no repair). Measurements share time stamps (several landmarks in one image), so
+  ``GAP`` seconds are counted (they need no repair: the motion model's noise grows with a
+  step's duration, and :func:`.real.between` reads the next command as taking over at a time
+  unknown within the step). Measurements share time stamps (several landmarks in one image), so
   their times are only non-decreasing. Time running backwards by more than ``MAX_BACKSTEP``,
   no rows, or too few columns anywhere but the last line stay errors.
 * The default stretch starts where the start pose is known from the ground truth *and*
@@ -199,7 +200,7 @@ def load(folder: Path, robot: int, t_start: float | None = None, t_end: float | 
         repairs["odometry_gaps"] = gaps
         longest = float(np.max(np.diff(odom[:, 0])))
         _say(files["odometry"], f"{gaps} gap(s) over {GAP:g} s between rows (longest {longest:.2f} s); "
-                                "the motion model's noise grows over them")
+                                "the next command is read as taking over at an unknown time within each")
 
     t0 = float(max(truth[0, 0], odom[0, 0])) if t_start is None else float(t_start)
     if t_end is None:
