@@ -24,8 +24,8 @@ applied to the odometry: the README's 5-18 % over-reported turning and 0.16 s le
 measured against the Vicon, which the estimators must not use, and over the stretches that
 matter here (up to 20-40 s between sightings) the heading error grows like a random walk,
 not like a scale error. The bearings do measure both (a tracked landmark's bearing turns at
-minus the turn rate, to first order): 0.22-0.32 s and 6-17 % on dataset 6's robots, against
-the Vicon's 0.18-0.22 s and 6-13 %; but correcting either moved some robots' smoother from
+minus the turn rate, to first order): 0.22-0.32 s and 6-21 % on dataset 6's robots, against
+the Vicon's 0.18-0.22 s and 6-15 %; but correcting either moved some robots' smoother from
 0.14 to 0.37 m or into a wrong minimum (the README's MRCLAM section), so neither is applied.
 """
 
