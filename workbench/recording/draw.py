@@ -59,7 +59,7 @@ def plot_series(rec: rr.RecordingStream, timeline: str, curves: dict, estimators
         for key, values in c.series.items():
             est = estimators.get(key)
             rgb, w = (est.color, 1.5 * emphasis(est)) if est is not None else others.get(key, ((150, 150, 150), 1.0))
-            scalars(rec, f"{origin}/{key}", timeline, c.t, values, c.label(key), rgb, w)
+            scalars(rec, f"{origin}/{key}", timeline, c.t, values, c.label(key), rgb, w, key in c.points)
 
 
 def times(timeline: str, seconds: np.ndarray) -> rr.TimeColumn:
@@ -67,11 +67,14 @@ def times(timeline: str, seconds: np.ndarray) -> rr.TimeColumn:
 
 
 def scalars(rec: rr.RecordingStream, path: str, timeline: str, t: np.ndarray, values: np.ndarray,
-            name: str, rgb: tuple[int, int, int], width: float = 1.5) -> int:
-    """A time series (NaNs dropped), styled once statically; returns the row count."""
+            name: str, rgb: tuple[int, int, int], width: float = 1.5, points: bool = False) -> int:
+    """A time series (NaNs dropped), styled once statically (a line, or ``points`` at least 3 px,
+    twice ``width``); returns the row count."""
     values = np.asarray(values, float)
     ok = np.isfinite(values)
-    rec.log(path, rr.SeriesLines(colors=[rgb], names=[name], widths=[width]), static=True)
+    style = (rr.SeriesPoints(colors=[rgb], names=[name], marker_sizes=[max(3.0, 2.0 * width)]) if points
+             else rr.SeriesLines(colors=[rgb], names=[name], widths=[width]))
+    rec.log(path, style, static=True)
     if ok.any():
         rec.send_columns(path, indexes=[times(timeline, t[ok])],
                          columns=rr.Scalars.columns(scalars=values[ok]))

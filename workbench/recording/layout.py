@@ -31,13 +31,15 @@ class Curves:
     """What one time plot shows: ``t`` (s) and, by series name, its values on ``t``
     (``float`` arrays, NaN where there is none); ``unit`` for the off-the-scale note;
     ``fixed``: names that are reference lines (a consistency band), never off the scale;
-    ``labels``: a series' name in the legend where it is not its key (the key names the entity)."""
+    ``labels``: a series' name in the legend where it is not its key (the key names the entity);
+    ``points``: names drawn as points, not a line (events: a line between them would invent values)."""
 
     t: np.ndarray
     series: dict[str, np.ndarray] = field(default_factory=dict)
     unit: str = ""
     fixed: tuple[str, ...] = ()
     labels: dict[str, str] = field(default_factory=dict)
+    points: tuple[str, ...] = ()
 
     def label(self, key: str) -> str:
         return self.labels.get(key, key)

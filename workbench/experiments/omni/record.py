@@ -89,8 +89,9 @@ def _switch_curves(d) -> dict[str, views.Curves]:
     if not shown.any():
         return {}
     key = "switch_heading_sigma"
-    return {"/odometry/switch": views.Curves(d.t[:-1][shown], {key: sigma[shown]}, "deg", (),
-                                             {key: "heading sigma of the command's unknown switch"})}
+    return {"/odometry/switch": views.Curves(d.t[:-1][shown], {key: sigma[shown]}, "deg",
+                                             labels={key: "heading sigma of the command's unknown switch"},
+                                             points=(key,))}
 
 
 def blueprint(names: list[str], scene: np.ndarray, curves: dict[str, views.Curves], with_images: bool = False,
@@ -118,8 +119,8 @@ def blueprint(names: list[str], scene: np.ndarray, curves: dict[str, views.Curve
     sigmas = [plot("/sigma/position", "own sigma, position (m)"),
               plot("/sigma/heading", "own sigma, heading (deg)", legend=False)]
     if "/odometry/switch" in curves:
-        sigmas.append(plot("/odometry/switch", "odometry: the heading sigma (deg) a step's command adds when the "
-                           "log does not say when it switched (gaps between logged commands)", legend=False))
+        sigmas.append(plot("/odometry/switch", "odometry gaps: heading sigma of an unknown switch (deg)",
+                           legend=False))
     sigmas = rrb.Vertical(*sigmas, name="own sigmas (run 0)")
     mc = rrb.Vertical(
         plot("/monte_carlo/position", "RMS position error over runs (m), grey: Cramér-Rao bounds"),
