@@ -445,20 +445,9 @@ class _Incremental:
         those four outweighs turning the whole trajectory by 50 deg, and LM does (measured)."""
         if not math.isfinite(self.gate):
             return True
-        pose = _pose(self.chain)
-        point = self.points[lm]
-        d = point - pose[:2]
-        q = float(d @ d)
-        if q < 1e-12:
-            return True
-        r = float(wrap(bearing - (math.atan2(d[1], d[0]) - pose[2])))
-        h_point = np.array([-d[1], d[0]]) / q
-        h_pose = np.array([d[1] / q, -d[0] / q, -1.0])
-        s = float(h_pose @ self.chain_cov @ h_pose) + self.data.sigma_bearing ** 2
-        cov = self.point_cov.get(lm)
-        if cov is not None and np.isfinite(cov).all():
-            s += float(h_point @ cov @ h_point)
-        return r * r <= self.gate * s
+        r2, s = _bearing_test(_pose(self.chain), self.chain_cov, self.points[lm], self.point_cov.get(lm),
+                              bearing, self.data.sigma_bearing)
+        return r2 <= self.gate * s
 
     def _marginals(self, result: gtsam.Values, e: int) -> None:
         """The newest pose's and the landmarks' marginals at an LM pass's answer (the gate's
@@ -589,16 +578,12 @@ def batch(data: OmniData, cfg: OmniConfig, kf: Keyframes | None = None,
     n_lm, E = len(data.landmarks), len(kf.steps)
     start_poses, start_map, rejected = _batch_start(data, cfg, kf, initial)
     marks = _Landmarks(n_lm, data.sigma_bearing, math.radians(cfg.graph_parallax_deg), cfg.huber)
-    graph, values = gtsam.NonlinearFactorGraph(), gtsam.Values()
-    graph.add(_prior(data))
+    values = gtsam.Values()
     for e in range(E):
         values.insert(X(e), gtsam.Pose2(*start_poses[e]))
-        if e:
-            odo, cov = kf.between[e - 1]
-            graph.add(gtsam.BetweenFactorPose2(X(e - 1), X(e), odo, _noise(cov)))
     first_seen = np.full(n_lm, -1)
     init_step = np.full(n_lm, -1)
-    for e in range(E):
+    for e in range(E):  # which landmarks enter, where they start (their factors: _batch_graph)
         lms, bearings = kf.bearings[e]
         for lm, b in zip(lms, bearings, strict=True):
             lm, b = int(lm), float(b)
@@ -607,13 +592,12 @@ def batch(data: OmniData, cfg: OmniConfig, kf: Keyframes | None = None,
             if (e, lm) in rejected:
                 continue
             preset = start_map[lm] if np.isfinite(start_map[lm]).all() else None
-            factors, point = marks.observe(e, lm, b, lambda k: start_poses[k], preset)
-            for factor in factors:
-                graph.add(factor)
+            _, point = marks.observe(e, lm, b, lambda k: start_poses[k], preset)
             if point is None:
                 continue
             values.insert(L(lm), point)
             init_step[lm] = kf.steps[e]
+    graph = _batch_graph(data, kf, marks, rejected)
     result = gtsam.LevenbergMarquardtOptimizer(graph, values, _lm_params(100)).optimize()
     covs, lm_cov = _batch_marginals(graph, result, E, marks.inserted)
     for _ in range(REGATE_ROUNDS if cfg.nis_gate > 0.0 else 0):
@@ -621,15 +605,7 @@ def batch(data: OmniData, cfg: OmniConfig, kf: Keyframes | None = None,
         if again == rejected:
             break
         rejected = again
-        graph = gtsam.NonlinearFactorGraph()
-        graph.add(_prior(data))
-        for e in range(1, E):
-            odo, cov = kf.between[e - 1]
-            graph.add(gtsam.BetweenFactorPose2(X(e - 1), X(e), odo, _noise(cov)))
-        for e in range(E):
-            for lm, b in zip(*kf.bearings[e], strict=True):
-                if marks.inserted[int(lm)] and (e, int(lm)) not in rejected:
-                    graph.add(marks.factor(e, int(lm), float(b)))
+        graph = _batch_graph(data, kf, marks, rejected)
         result = gtsam.LevenbergMarquardtOptimizer(graph, result, _lm_params(100)).optimize()
         covs, lm_cov = _batch_marginals(graph, result, E, marks.inserted)
     poses = np.array([_pose(result.atPose2(X(e))) for e in range(E)])
@@ -643,6 +619,40 @@ def batch(data: OmniData, cfg: OmniConfig, kf: Keyframes | None = None,
 
 REGATE_ROUNDS = 3
 """How many times the batch re-gates every bearing against its own smoothed answer."""
+
+
+def _batch_graph(data: OmniData, kf: Keyframes, marks: _Landmarks, rejected: set[tuple[int, int]]
+                 ) -> gtsam.NonlinearFactorGraph:
+    """The batch's factors: the start's prior, the odometry between keyframes, and every bearing
+    of a landmark in the graph (``marks.inserted``) but those ``(keyframe, landmark)`` in
+    ``rejected`` (what :meth:`_Landmarks.observe` hands out over the run, held rays included)."""
+    graph = gtsam.NonlinearFactorGraph()
+    graph.add(_prior(data))
+    for e, (odo, cov) in enumerate(kf.between, start=1):
+        graph.add(gtsam.BetweenFactorPose2(X(e - 1), X(e), odo, _noise(cov)))
+    for e, (lms, bearings) in enumerate(kf.bearings):
+        for lm, b in zip(lms.tolist(), bearings.tolist(), strict=True):
+            if marks.inserted[lm] and (e, lm) not in rejected:
+                graph.add(marks.factor(e, lm, b))
+    return graph
+
+
+def _bearing_test(pose: np.ndarray, pose_cov: np.ndarray, point: np.ndarray, point_cov: np.ndarray | None,
+                  bearing: float, sigma: float) -> tuple[float, float]:
+    """A bearing's squared residual from ``pose`` to ``point`` and its variance there: the pose's
+    (world frame) and the point's covariance through the bearing's Jacobian (their correlation
+    ignored; one not given or not finite left out) plus the bearing's own ``sigma^2``. A point on
+    the pose has nothing to test: ``(0, 1)``."""
+    d = np.asarray(point, float) - pose[:2]
+    q = float(d @ d)
+    if q < 1e-12:
+        return 0.0, 1.0
+    r = float(wrap(bearing - (math.atan2(d[1], d[0]) - pose[2])))
+    s = sigma ** 2
+    for h, cov in ((np.array([d[1] / q, -d[0] / q, -1.0]), pose_cov), (np.array([-d[1], d[0]]) / q, point_cov)):
+        if cov is not None and np.isfinite(cov).all():
+            s += float(h @ cov @ h)
+    return r * r, s
 
 
 def _batch_marginals(graph: gtsam.NonlinearFactorGraph, result: gtsam.Values, E: int, inserted: np.ndarray
@@ -675,21 +685,11 @@ def _regate(data: OmniData, cfg: OmniConfig, kf: Keyframes, result: gtsam.Values
             continue
         pose = _pose(result.atPose2(X(e)))
         pose_cov = to_world(covs[e][None], np.array([pose[2]]))[0]
-        for lm, b in zip(lms, bearings, strict=True):
-            lm = int(lm)
+        for lm, b in zip(lms.tolist(), bearings.tolist(), strict=True):
             if not inserted[lm]:
                 continue
-            d = np.asarray(result.atPoint2(L(lm))) - pose[:2]
-            q = float(d @ d)
-            r = float(wrap(b - (math.atan2(d[1], d[0]) - pose[2])))
-            h_pose = np.array([d[1] / q, -d[0] / q, -1.0])
-            h_point = np.array([-d[1], d[0]]) / q
-            s = data.sigma_bearing ** 2
-            if np.isfinite(pose_cov).all():
-                s += float(h_pose @ pose_cov @ h_pose)
-            if np.isfinite(lm_cov[lm]).all():
-                s += float(h_point @ lm_cov[lm] @ h_point)
-            if r * r > gate * s:
+            r2, s = _bearing_test(pose, pose_cov, result.atPoint2(L(lm)), lm_cov[lm], b, data.sigma_bearing)
+            if r2 > gate * s:
                 out.add((e, lm))
     return out
 

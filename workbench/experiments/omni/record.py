@@ -60,8 +60,7 @@ def plots(first: RunResult, runs: list[RunSummary]) -> dict[str, views.Curves]:
                     c.series[key] = values
                     c.fixed += (key,)
                     c.labels[key] = f"Cramér-Rao, {key[6:]}"
-    out = _switch_curves(first.data)
-    return out | {
+    return _switch_curves(first.data) | {
         "/errors/position": curves({n: np.hypot(v[:, 0], v[:, 1]) for n, v in e.items()}, "m"),
         "/errors/heading": curves({n: np.degrees(v[:, 2]) for n, v in e.items()}, "deg"),
         "/nees": curves(dict(zero.nees), "", one),

@@ -76,16 +76,14 @@ class Model:
         differences: a terrain slope read from a real DEM changes across grid cells within the
         ground point's uncertainty, and its first-order sigma was 2-30 times too small on the
         NGI pair."""
-        from workbench.estimation.unscented import sigma_points
+        from workbench.estimation.unscented import moments, sigma_points
 
         p = self.pose if pose is None else np.asarray(pose, float)
         value = np.asarray(fn(p), float)
         if self.pose_cov is None or not np.isfinite(self.pose_cov).all():
             return value, None
         points, weights = sigma_points(p, self.pose_cov)
-        ys = np.array([np.asarray(fn(x), float).ravel() for x in points])
-        d = ys - weights @ ys
-        return value, (weights[:, None] * d).T @ d
+        return value, moments(np.array([np.asarray(fn(x), float).ravel() for x in points]), weights).cov
 
     def arrays(self) -> dict[str, np.ndarray]:
         d = self.dem
