@@ -12,12 +12,7 @@ The Python API (imported on first use, so ``import workbench`` stays light):
   side, overlaid and differenced (the ``workbench compare`` command).
 """
 
-from importlib.metadata import PackageNotFoundError, version
-
-try:
-    __version__ = version("workbench")
-except PackageNotFoundError:  # running from a source tree that is not installed
-    __version__ = "0.0.0+unknown"
+from workbench.version import __version__ as __version__
 
 __all__ = ["run", "configure", "experiment", "estimator", "Result", "show", "compare"]
 
@@ -32,7 +27,7 @@ def __getattr__(name: str):
 
         return get
     if name == "estimator":
-        from workbench.experiments.plugins import estimator
+        from workbench.experiments.estimator import estimator
 
         return estimator
     if name == "show":

@@ -252,12 +252,12 @@ def measure(model: str = typer.Argument(..., help="A halftone model folder (a te
 @app.command("list")
 def list_experiments() -> None:
     """Name the experiments, their scenarios and estimators (installed plugins too)."""
-    from workbench.experiments import plugins
+    from workbench.experiments.estimator import installed
 
     for exp in experiments.all_experiments():
         typer.echo(f"{exp.name:8s} {exp.description}")
         typer.echo(f"  scenarios:  {', '.join(exp.scenarios)}")
-        extra = list(plugins.installed(exp.name))
+        extra = list(installed(exp.name))
         typer.echo(f"  estimators: {', '.join(exp.estimators)}" + (f"; plugins: {', '.join(extra)}" if extra else ""))
 
 

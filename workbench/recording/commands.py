@@ -93,7 +93,7 @@ def compare(files: list[Path] = typer.Argument(..., help="Two or more .rrd recor
     """One recording of several runs of an experiment: each side by side as it opens alone, their
     curves and maps overlaid, and each later run's headline error curves minus the first's."""
     from workbench.errors import WorkbenchError
-    from workbench.experiments.contract import split_list
+    from workbench.loading import split_list
     from workbench.recording import compare as comparison
 
     pairs = []

@@ -350,10 +350,10 @@ def write(files: list[Path], out: Path, labels: list[str] | None = None, pairs: 
     import rerun as rr
     import rerun.blueprint as rrb
 
-    from workbench import __version__
     from workbench.experiments import get
     from workbench.recording import draw, stream
     from workbench.recording import layout as views
+    from workbench.version import __version__
 
     runs = runs_of(files, labels)
     out = stream.check_output(out, force)

@@ -13,8 +13,8 @@ import warnings
 from pathlib import Path
 from typing import Any
 
-from workbench import __version__
 from workbench.errors import WorkbenchError
+from workbench.version import __version__
 
 IGNORED = {"seconds", "wall_seconds", "recording", "frames_per_second", "seconds_per_frame", "estimator_table",
            "tum", "config"}
@@ -103,11 +103,11 @@ def _check_version(path: Path, version: str) -> None:
 
 def config_of(stored: Stored) -> Any:
     """The recording's config, rebuilt as its experiment's config type."""
-    from workbench.experiments import REGISTRY, get
+    from workbench.experiments import get, names
 
-    if stored.experiment not in REGISTRY:
+    if stored.experiment not in names():
         raise WorkbenchError(f"{stored.path} is a recording of {stored.experiment!r}, which this workbench does not "
-                             f"have ({', '.join(REGISTRY)})")
+                             f"have ({', '.join(names())})")
     exp = get(stored.experiment)
     fields = {f.name: f for f in dataclasses.fields(exp.config_type)}
     unknown = sorted(set(stored.config) - set(fields))
@@ -141,9 +141,9 @@ def describe(stored: Stored) -> str:
     changed = {k: v for k, v in stored.config.items() if k not in ("estimators",)}
     lines.append("config:    " + json.dumps(changed, sort_keys=True))
     if stored.metrics is not None:
-        from workbench.experiments import REGISTRY, get
+        from workbench.experiments import get, names
 
-        if stored.experiment in REGISTRY:
+        if stored.experiment in names():
             lines += ["", get(stored.experiment).table(stored.metrics)]
     else:
         lines.append("(no metrics stored: recorded before workbench stored them; replay cannot compare)")

@@ -16,9 +16,9 @@ from pathlib import Path
 import rerun as rr
 import rerun.blueprint as rrb
 
-from workbench import __version__
 from workbench.errors import WorkbenchError
 from workbench.paths import PROJECT_ROOT
+from workbench.version import __version__
 
 
 def check_output(path: Path, force: bool) -> Path:

@@ -94,7 +94,7 @@ def sweep_report(folder: Path = typer.Argument(..., help="A sweep folder (its ta
 
 
 def _names(selection: str | None) -> list[str]:
-    from workbench.experiments.contract import split_list
+    from workbench.loading import split_list
 
     return list(split_list(selection)) if selection else []
 

@@ -14,7 +14,8 @@ from collections.abc import Iterable, Mapping
 from typing import Any
 
 from workbench.errors import WorkbenchError
-from workbench.experiments.contract import Experiment, split_list
+from workbench.experiments.contract import Experiment
+from workbench.loading import split_list
 
 FIXED = ("seed", "runs", "estimators")
 """Settings a sweep owns (it seeds and counts runs itself) and a grid cannot take."""

@@ -274,7 +274,7 @@ def write(folder: Path) -> list[Path]:
     exp = _experiment(table["experiment"][0].as_py())
     preset = {p.name: p for p in exp.presets}.get(manifest.get("preset")) if exp is not None else None
     if preset is not None and preset.report:
-        from workbench.experiments.plugins import load
+        from workbench.loading import load
 
-        written += load(preset.report)(table, folder, manifest)
+        written += load(preset.report, "report")(table, folder, manifest)
     return written

@@ -22,11 +22,12 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from workbench import __version__, montecarlo
+from workbench import montecarlo
 from workbench.errors import WorkbenchError
 from workbench.experiments import get, limits
 from workbench.sweeps import grid as grids
 from workbench.sweeps.tasks import Task, run_task, write
+from workbench.version import __version__
 
 MANIFEST = "sweep.json"
 TASKS = "tasks"

@@ -76,7 +76,7 @@ def run_task(task: Task) -> pa.Table:
     cfg = task.config()
     chosen = exp.select(list(task.estimators))
     cfg.estimators = tuple(e.spec for e in chosen)
-    units = exp.metric_units
+    units = exp.metric_units(cfg)
     rows: dict[str, list] = {c: [] for c in COLUMNS}
     params = dict(task.params)
     for key in params:

@@ -9,11 +9,11 @@ field of view, 30 m range, a square route 12 m inside the walls, the start pose 
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 from pathlib import Path
 
 from workbench.errors import require
-from workbench.experiments.contract import Option, Scenario, apply_scenario, by_scenario
+from workbench.experiments.settings import Config, Option, Scenario, apply_scenario, by_scenario
 
 IMAGE_SIGMA_BEARING_DEG = 0.3
 
@@ -40,12 +40,10 @@ SCENARIOS: dict[str, Scenario] = {s.name: s for s in (
 
 
 @dataclass
-class OmniConfig:
+class OmniConfig(Config):
     """Everything an omni run depends on; angles in the public fields are in degrees."""
 
     scenario: str = "paper"
-    seed: int = 0
-    runs: int = 1
     # the paper's simulation
     room: float = 80.0
     inset: float = 12.0
@@ -90,7 +88,6 @@ class OmniConfig:
     start_time: float | None = None
     end_time: float | None = None
     odometry_between: str = "switch"
-    estimators: tuple[str, ...] = ()  # () = the experiment's defaults
 
     def __post_init__(self) -> None:
         if self.sigma_bearing_deg is None:
@@ -170,12 +167,6 @@ class OmniConfig:
         require(self.odometry_between in ODOMETRY_BETWEEN,
                 f"--odometry-between must be one of {', '.join(ODOMETRY_BETWEEN)} (got {self.odometry_between!r})")
         return self
-
-    def to_json(self) -> dict:
-        out = asdict(self)
-        out["data"] = str(self.data) if self.data is not None else None
-        out["estimators"] = list(self.estimators)
-        return out
 
 
 def make_config(scenario: str, **given) -> OmniConfig:

@@ -44,12 +44,11 @@ import gtsam
 import numpy as np
 from gtsam.symbol_shorthand import L, X
 
-from workbench.experiments.contract import RunContext
+from workbench.experiments.estimator import RunContext, estimator
 from workbench.experiments.omni import graph
 from workbench.experiments.omni.config import OmniConfig
 from workbench.experiments.omni.estimate import SlamEstimate
 from workbench.experiments.omni.scenario import OmniData
-from workbench.experiments.plugins import estimator
 
 LAG = 5.0
 """Seconds of data after a keyframe that its estimate waits for."""

@@ -21,7 +21,9 @@ import rerun as rr
 import rerun.blueprint as rrb
 
 from workbench.estimation import metrics
-from workbench.experiments.omni.evaluate import RunSummary, mc_curves, on_grid, smoothed_on_grid
+from workbench.experiments import plots as metric_plots
+from workbench.experiments.omni import metrics as omni_metrics
+from workbench.experiments.omni.evaluate import RunSummary, on_grid, smoothed_on_grid
 from workbench.experiments.omni.run import RunResult
 from workbench.recording import draw
 from workbench.recording import layout as views
@@ -33,11 +35,12 @@ BOUNDS = {"bound_filtering": ((110, 110, 110), 2.0), "bound_smoothing": ((40, 40
 
 def plots(first: RunResult, runs: list[RunSummary]) -> dict[str, views.Curves]:
     """Every time plot's curves, by view origin: run 0's errors, own sigmas and NEES (with the
-    one-run 95 % band), and the curves over runs (with the band for that many runs). The
-    blueprint's axes and legends and the drawn series both come from these."""
+    one-run 95 % band), the metrics' curves over runs (RMS position and heading errors with the
+    Cramér-Rao bounds beside them, the ANEES with its band for that many runs) and the metrics
+    of the "metrics" tab. The blueprint's axes and legends and the drawn series come from these."""
     zero = runs[0]
     t = zero.t
-    one, many = metrics.chi2_band(3, 1), metrics.chi2_band(3, len(runs))
+    one = metrics.chi2_band(3, 1)
     band = {"band_lo": "95 % low", "band_hi": "95 % high"}
 
     def curves(values: dict[str, np.ndarray], unit: str = "", lohi: tuple[float, float] | None = None
@@ -49,14 +52,16 @@ def plots(first: RunResult, runs: list[RunSummary]) -> dict[str, views.Curves]:
         return c
 
     e, s = zero.errors, zero.sigmas
-    mc = mc_curves(runs)
-    position = curves({n: c["position"] for n, c in mc.items()}, "m")
-    heading = curves({n: c["heading"] for n, c in mc.items()}, "deg")
+    known = metric_plots.by_name(first.metrics)
+    over = {origin: metric_plots.over_runs(known[name], runs) or views.Curves(t, {}, known[name].unit)
+            for origin, name in DRAWN.items()}
     if runs[0].bounds:  # the Cramér-Rao bounds beside the RMS errors over runs
         for key, delay in (("bound_filtering", 0.0), ("bound_smoothing", float("inf"))):
             if delay in runs[0].bounds:
                 V = {q: np.stack([r.bounds[delay][q] for r in runs]).mean(axis=0) for q in ("position", "heading")}
-                for c, values in ((position, np.sqrt(V["position"])), (heading, np.degrees(np.sqrt(V["heading"])))):
+                for origin, values in (("/monte_carlo/position", np.sqrt(V["position"])),
+                                       ("/monte_carlo/heading", np.degrees(np.sqrt(V["heading"])))):
+                    c = over[origin]
                     c.series[key] = values
                     c.fixed += (key,)
                     c.labels[key] = f"Cramér-Rao, {key[6:]}"
@@ -66,10 +71,12 @@ def plots(first: RunResult, runs: list[RunSummary]) -> dict[str, views.Curves]:
         "/nees": curves(dict(zero.nees), "", one),
         "/sigma/position": curves({n: np.hypot(v[:, 0], v[:, 1]) for n, v in s.items()}, "m"),
         "/sigma/heading": curves({n: np.degrees(v[:, 2]) for n, v in s.items()}, "deg"),
-        "/monte_carlo/position": position,
-        "/monte_carlo/heading": heading,
-        "/monte_carlo/nees": curves({n: c["nees"] for n, c in mc.items()}, "", many),
-    }
+    } | over | metric_plots.extra(first.metrics, runs, omni_metrics.CURVES)
+
+
+DRAWN = {"/monte_carlo/position": "position_rmse", "/monte_carlo/heading": "heading_rmse",
+         "/monte_carlo/nees": "anees"}
+"""The metrics the "over runs" tab draws, by view origin."""
 
 
 SWITCH_SHOWN = 0.05
@@ -94,12 +101,12 @@ def _switch_curves(d) -> dict[str, views.Curves]:
 
 
 def blueprint(names: list[str], scene: np.ndarray, curves: dict[str, views.Curves], with_images: bool = False,
-              span: tuple[float, float] = (0.0, 500.0)) -> rrb.Blueprint:
+              span: tuple[float, float] = (0.0, 500.0), extra: rrb.Vertical | None = None) -> rrb.Blueprint:
     """Maps in a grid on the left, each top-down over ``scene`` (points, m), one per estimator
     (and the round camera image, when there is one); errors, sigmas, NEES and the Monte Carlo
     curves on the right in named tabs, every plot on the whole run ``span`` with its axis and
-    legend fitted to its ``curves`` (one diverging estimator does not flatten the others). The
-    legend is in the first plot of each tab: the colours are the same below it."""
+    legend fitted to its ``curves`` (one diverging estimator does not flatten the others); ``extra``:
+    the "metrics" tab. The legend is in the first plot of each tab: the colours are the same below it."""
 
     def plot(origin: str, name: str, legend: bool = True) -> rrb.TimeSeriesView:
         return views.plot(origin, name, span, curves.get(origin), legend=legend)
@@ -127,9 +134,10 @@ def blueprint(names: list[str], scene: np.ndarray, curves: dict[str, views.Curve
         plot("/monte_carlo/nees", "ANEES over runs, grey: 95 % band", legend=False),
         name="over runs",
     )
+    tabs = [one_run, sigmas, mc, extra] if extra is not None else [one_run, sigmas, mc]
     return rrb.Blueprint(
-        rrb.Horizontal(maps, rrb.Tabs(one_run, sigmas, mc, rrb.TextDocumentView(origin="/summary", name="results"),
-                                      name="plots"), column_shares=[3, 2]),
+        rrb.Horizontal(maps, rrb.Tabs(*tabs, rrb.TextDocumentView(origin="/summary", name="results"), name="plots"),
+                       column_shares=[3, 2]),
         collapse_panels=True,
     )
 
@@ -138,7 +146,9 @@ def layout(first: RunResult, runs: list[RunSummary]) -> rrb.Blueprint:
     """The default layout: maps framed on the walls (the simulation) or the landmarks (MRCLAM)
     and the true path; the plots fitted to their curves."""
     span = (float(runs[0].t[0]), float(runs[0].t[-1]))
-    return blueprint(list(first.estimates), scene(first), plots(first, runs), first.images is not None, span)
+    curves = plots(first, runs)
+    return blueprint(list(first.estimates), scene(first), curves, first.images is not None, span,
+                     metric_plots.tab(curves, first.metrics, span))
 
 
 def scene(first: RunResult) -> np.ndarray:
@@ -243,14 +253,16 @@ def record_run(rec: rr.RecordingStream, first: RunResult, zero: RunSummary) -> N
         if est.attempts:
             pt, clouds = _pending(first, est.attempts)
             draw.point_sets(rec, f"{base}/pending", TL, pt, clouds, (255, 140, 0), 0.12, 0.1)
-    draw.plot_series(rec, TL, plots(first, [zero]), first.estimators, lambda o: not o.startswith("/monte_carlo"))
+    draw.plot_series(rec, TL, plots(first, [zero]), first.estimators,
+                     lambda o: not o.startswith(("/monte_carlo", "/metrics")))
     if first.images is not None and first.images.frames:
         _images(rec, first)
 
 
 def record_runs(rec: rr.RecordingStream, first: RunResult, runs: list[RunSummary], table_md: str) -> None:
     """Log the curves over all runs and the results table with how to read the recording."""
-    draw.plot_series(rec, TL, plots(first, runs), first.estimators, lambda o: o.startswith("/monte_carlo"), BOUNDS)
+    draw.plot_series(rec, TL, plots(first, runs), first.estimators,
+                     lambda o: o.startswith(("/monte_carlo", "/metrics")), BOUNDS)
     text = table_md + "\n\n" + how_to_read(first, len(runs))
     rec.log("/summary", rr.TextDocument(text, media_type=rr.MediaType.MARKDOWN), static=True)
 

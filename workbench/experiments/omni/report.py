@@ -1,59 +1,48 @@
-"""The omni results table: errors after settling and over the whole run, the map, the
-filter's own sigmas and its consistency, beside the paper's claims."""
+"""The omni results table: the metrics (:mod:`.metrics`) per estimator after settling, the whole
+run, the Cramér-Rao bounds, the image stage's figures, beside the paper's claims."""
 
 from __future__ import annotations
 
-from workbench.estimation import bounds
+from workbench.experiments import markdown
+from workbench.experiments.markdown import number as _f
+from workbench.experiments.omni.metrics import BOUNDS, METRICS, TABLE
 
 PAPER_CLAIMS = ("paper's claims (simulation): position error < 0.5 m, heading error < 1 deg; "
                 "own standard deviations < 1 m and < 1 deg after settling; odometry drifts without bound")
 
 
-def _f(x: float | None, fmt: str = ".2f") -> str:
-    return "-" if x is None else f"{x:{fmt}}"
-
-
 def table(stats: dict) -> str:
     """Markdown (also readable as plain text)."""
-    lo, hi = stats["nees_band"]
-    head = ("| estimator | pos rmse m | pos max m | head rmse deg | head max deg | map rmse m | "
-            "sigma x/y max m | sigma head max deg | ANEES | landmarks | init s | s/run |")
+    lo, hi = stats["metric_table"]["anees"]["band"]
     lines = [f"**omni / {stats['scenario']}** ({stats.get('label', '')}), {stats['runs']} run(s), "
              f"seed {stats['seed']}; errors after {stats['settle_seconds']:g} s, over all runs; "
-             f"ANEES 95 % band {lo:.2f}-{hi:.2f}", "", head, "|" + "---|" * 12]
-    for name, e in stats["estimators"].items():
-        s = e["sigma"]
-        sig_xy = None if s["x_max"] is None else max(s["x_max"], s["y_max"])
-        lines.append(
-            f"| {name} | {_f(e['rmse']['position'])} | {_f(e['max']['position'])} | {_f(e['rmse']['heading'])} "
-            f"| {_f(e['max']['heading'])} | {_f(e['rmse']['map'])} | {_f(sig_xy)} | {_f(s['heading_max'])} "
-            f"| {_f(e['anees'])} | {e['landmarks_initialised']:.1f} | {_f(e['init_seconds']['median'], '.1f')} "
-            f"| {e['seconds']:.2f} |")
+             f"ANEES 95 % band {lo:.2f}-{hi:.2f}", ""]
+    lines += markdown.metric_table(stats, METRICS, TABLE)
     lines += ["", "Whole run (including the first lap):"]
     for name, e in stats["estimators"].items():
-        w, m = e["rmse_whole_run"], e["max_whole_run"]
-        bits = [f"position rmse {_f(w['position'])} m, max {_f(m['position'])} m",
-                f"heading rmse {_f(w['heading'])} deg, max {_f(m['heading'])} deg"]
-        if e.get("rmse_aligned_whole_run"):
-            a, r = e["rmse_aligned_whole_run"], e["alignment"]
-            bits.append(f"after the best rigid alignment (evo -a) position rmse {_f(a['position'])} m, "
-                        f"heading rmse {_f(a['heading'])} deg (the alignment: {_f(r['rotation_deg'])} deg, "
-                        f"{_f(r['translation'])} m, rms over runs)")
-        if e.get("rmse_smoothed_whole_run"):
-            f = e["rmse_smoothed_whole_run"]
-            bits.append(f"its whole trajectory as held at the end (smoothed) position rmse {_f(f['position'])} m, "
-                        f"heading rmse {_f(f['heading'])} deg")
-        if e.get("nees_inside_band") is not None:
-            bits.append(f"mean NEES inside the band at {100 * e['nees_inside_band']:.0f} % of steps")
-        if e["failures"]:
-            bits.append(f"{e['failures']} rejected update(s)")
+        bits = [f"position rmse {_f(e.get('position_rmse_whole_run'))} m, max {_f(e.get('position_max_whole_run'))} m",
+                f"heading rmse {_f(e.get('heading_rmse_whole_run'))} deg, max {_f(e.get('heading_max_whole_run'))} deg"]
+        if "aligned_position_rmse_whole_run" in e:
+            bits.append(f"after the best rigid alignment (evo -a) position rmse "
+                        f"{_f(e['aligned_position_rmse_whole_run'])} m, heading rmse "
+                        f"{_f(e.get('aligned_heading_rmse_whole_run'))} deg (the alignment: "
+                        f"{_f(e.get('alignment_rotation'))} deg, {_f(e.get('alignment_translation'))} m, "
+                        "rms over runs)")
+        if "smoothed_position_rmse_whole_run" in e:
+            bits.append(f"its whole trajectory as held at the end (smoothed) position rmse "
+                        f"{_f(e['smoothed_position_rmse_whole_run'])} m, heading rmse "
+                        f"{_f(e.get('smoothed_heading_rmse_whole_run'))} deg")
+        if e.get("anees_inside_band") is not None:
+            bits.append(f"mean NEES inside the band at {100 * e['anees_inside_band']:.0f} % of steps")
+        if e.get("failures"):
+            bits.append(f"{e['failures']:.0f} rejected update(s)")
         if e.get("bearings_gated"):
-            bits.append(f"{e['bearings_gated']} bearing(s) left out by the gate (misreads, outliers)")
+            bits.append(f"{e['bearings_gated']:.0f} bearing(s) left out by the gate (misreads, outliers)")
         lines.append(f"- {name}: " + "; ".join(bits))
     if stats.get("data_repairs"):
         lines += ["", "Reading the log: " + ", ".join(f"{k.replace('_', ' ')} {v}"
                                                       for k, v in stats["data_repairs"].items())]
-    lines += [""] + bounds.table(stats, (("position", "m"), ("heading", "deg"), ("map", "m")))
+    lines += [""] + markdown.bounds_table(stats, BOUNDS)
     im = stats.get("images")
     if im:
         def pct(x: float | None) -> str:

@@ -8,30 +8,30 @@ stage's associated bearings. Its ``grid`` (the bearing epochs, plus one step at 
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
-from workbench.experiments.contract import Estimator, RunContext, estimate_all
+from workbench.experiments import contract
+from workbench.experiments.estimator import Estimator
 from workbench.experiments.omni.config import OmniConfig
-from workbench.experiments.omni.estimate import SlamEstimate, check
 from workbench.experiments.omni.scenario import OmniData, keyframe_steps, simulate
 
 
 @dataclass
-class RunResult:
-    """One run: its data (with its scoring grid), every estimate, and what failed."""
+class RunResult(contract.RunResult):
+    """One run (:class:`~workbench.experiments.contract.RunResult`) and its image stage, if any."""
 
-    data: OmniData
-    estimates: dict[str, SlamEstimate]
-    estimators: dict[str, Estimator] = field(default_factory=dict)
-    failed: dict[str, str] = field(default_factory=dict)  # estimators that failed: one line each
     images: object | None = None  # the image stage (``from_images``): images.ImageStage
-    keyframes: object | None = None  # the GTSAM estimators' graph skeleton, if one made it (graph.Keyframes)
 
     @property
     def grid(self) -> np.ndarray:
         return self.data.grid
+
+    @property
+    def keyframes(self):
+        """The GTSAM estimators' graph skeleton, if one made it (graph.Keyframes)."""
+        return self.products.get("keyframes")
 
 
 def make_data(cfg: OmniConfig, run: int) -> OmniData:
@@ -61,9 +61,9 @@ def with_stage(cfg: OmniConfig, run: int, record: bool = False) -> tuple[OmniDat
 
 def run_once(cfg: OmniConfig, run: int, estimators: list[Estimator], record: bool = False,
              threads: int = 1) -> RunResult:
-    """One run; ``record`` keeps what the recording draws (initialisation attempts, the
-    graph's map through time)."""
+    """One run; ``record`` keeps what the recording draws (the image stage's frames,
+    initialisation attempts, the graph's map through time)."""
+    from workbench.experiments.omni.experiment import EXPERIMENT
+
     data, stage = with_stage(cfg, run, record)
-    ctx = RunContext(run, record)
-    est, failed = estimate_all(estimators, data, cfg, ctx, check)
-    return RunResult(data, est, {e.name: e for e in estimators}, failed, stage, ctx.get("keyframes"))
+    return contract.run_estimators(EXPERIMENT, cfg, run, estimators, data, record, threads, images=stage)

@@ -2,11 +2,11 @@
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 from pathlib import Path
 
 from workbench.errors import require
-from workbench.experiments.contract import Option, Scenario, apply_scenario, by_scenario
+from workbench.experiments.settings import Config, Option, Scenario, apply_scenario, by_scenario
 
 SCENARIOS: dict[str, Scenario] = {s.name: s for s in (
     Scenario("paper", "the spec's reading of Table 1: a 3 m mast, 72 s, the target at 0.1 m/s^2"),
@@ -22,7 +22,7 @@ ALL_SHIPS = "all"
 
 
 @dataclass
-class SeaConfig:
+class SeaConfig(Config):
     """Everything a sea run depends on. Angles in the public fields are in their named units.
 
     Defaults are ``spec/sea.md``'s reading of Table 1: target velocity (-2.98, -3.12) m/s
@@ -32,8 +32,6 @@ class SeaConfig:
     """
 
     scenario: str = "paper"
-    seed: int = 0
-    runs: int = 1
     dt: float = 0.1
     duration: float = by_scenario(72.0)
     height: float = by_scenario(3.0)
@@ -67,7 +65,6 @@ class SeaConfig:
     observer: str = "mast"            # ais: "mast" (stationary) | "uav" (the real UAV flight, see sea.uav)
     uav_data: Path | None = None
     uav_start: float = 0.0            # where in the UAV flight the run starts, s
-    estimators: tuple[str, ...] = ()  # () = the experiment's defaults
     # the image stage (``--from-images``): frames rendered from the truth, angles detected
     from_images: bool = False
     image_size: tuple[int, int] = (1920, 1080)
@@ -141,14 +138,6 @@ class SeaConfig:
         require(self.frame_stride >= 0, f"--frame-stride must not be negative, got {self.frame_stride}")
         require(0 <= self.bad_frames <= self.steps, f"--bad-frames must be in [0, {self.steps}]")
         return self
-
-    def to_json(self) -> dict:
-        d = asdict(self)
-        d["data"] = str(self.data) if self.data is not None else None
-        d["uav_data"] = str(self.uav_data) if self.uav_data is not None else None
-        d["estimators"] = list(self.estimators)
-        d["image_size"] = list(self.image_size)
-        return d
 
 
 def _flag(name: str) -> str:

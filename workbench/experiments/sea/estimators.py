@@ -3,12 +3,12 @@
 Each runner is ``(data, cfg[, ctx]) -> Estimate`` and imports its module when first run, so the
 table costs nothing to read. Adding a built-in is one module with such a function and one row
 here naming it as ``"module:function"`` (as ``ekf``); a researcher's own goes beside these
-without touching the package (:mod:`workbench.experiments.plugins`).
+without touching the package (:mod:`workbench.experiments.estimator`).
 """
 
 from __future__ import annotations
 
-from workbench.experiments.contract import Estimator, RunContext, table
+from workbench.experiments.estimator import Estimator, RunContext, table
 from workbench.experiments.sea.config import SeaConfig
 from workbench.experiments.sea.estimate import Estimate
 from workbench.experiments.sea.scenario import SeaData

@@ -1,13 +1,13 @@
-"""**Evaluate**: a run's errors and summary, and the statistics of Table 2 over runs.
+"""**Evaluate**: a run's errors and summary beside its metrics (:mod:`.metrics`, which give
+Table 2's statistics), and what the metrics JSON holds beyond them: the impulse's transient, the
+track loss, the forecasts, the image stage, every ship of ``--mmsi all``.
 
 Errors are ``truth - estimate`` per step; a run's summary keeps small arrays only (what a
-Monte Carlo worker sends back); the statistics are time averages per run, then the mean and
-spread over runs; the Monte Carlo curves are per-step RMS and ANEES over runs.
+Monte Carlo worker sends back).
 """
 
 from __future__ import annotations
 
-import warnings
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 
@@ -15,43 +15,29 @@ import numpy as np
 
 from workbench.estimation import metrics
 from workbench.estimation.angles import to_arcmin, wrap
+from workbench.experiments import metric
+from workbench.experiments.contract import RunSummary as Summary
 from workbench.experiments.sea import bounds as sea_bounds
 from workbench.experiments.sea.config import ALL_SHIPS, SeaConfig
 from workbench.experiments.sea.estimate import Estimate
+from workbench.experiments.sea.metrics import QUANTITIES, RENAMED, bounds, errors
 from workbench.experiments.sea.paper import TABLE2
 from workbench.experiments.sea.run import RunResult, run_once
 from workbench.experiments.sea.scenario import SeaData
 
-QUANTITIES = ("x", "y", "alpha", "beta", "range")
-
-
-def errors(data: SeaData, est: Estimate) -> np.ndarray:
-    """Errors ``truth - estimate`` per step: x, y (m), alpha, beta (rad), range (m)."""
-    return np.stack([
-        data.target[:, 0] - est.position[:, 0],
-        data.target[:, 1] - est.position[:, 1],
-        wrap(data.alpha - est.alpha),
-        data.beta - est.beta,
-        data.range - est.range,
-    ], axis=1)
-
 
 @dataclass
-class RunSummary:
-    """What a Monte Carlo worker sends back: small arrays, no GTSAM objects."""
+class RunSummary(Summary):
+    """What a Monte Carlo worker sends back beside the metrics: small arrays, no GTSAM objects."""
 
-    run: int
     errors: dict[str, np.ndarray]
-    nees: dict[str, np.ndarray]
     forecast_err: dict[str, np.ndarray]       # (T, 4) l-step errors x, y (m), alpha, beta (rad)
     forecast_unusable: dict[str, np.ndarray]  # (T,) an angle forecast with beta <= 0
-    seconds: dict[str, float]
     seen: np.ndarray
     t: np.ndarray
     transient: dict[str, np.ndarray] = field(default_factory=dict)
-    simulated: dict[str, np.ndarray] | None = None  # errors on simulated angles (``from_images``)
+    simulated: dict[str, dict[str, metric.Values]] | None = None  # the metrics on simulated angles (``from_images``)
     image: dict | None = None                       # the image stage's errors and flags
-    failed: dict[str, str] = field(default_factory=dict)  # estimators that failed: one line each
     delays: dict[str, float] = field(default_factory=dict)  # each estimator's delay (its bound)
     bounds: dict[float, dict[str, np.ndarray]] = field(default_factory=dict)  # delay -> quantity -> (T,)
     ship: int | None = None                         # ais: the ship's MMSI
@@ -60,18 +46,11 @@ class RunSummary:
 
 
 def summarise(result: RunResult, cfg: SeaConfig, run: int) -> RunSummary:
-    """The run's errors, NEES, forecast errors, impulse transient and image-stage figures."""
+    """The run's errors, forecast errors, impulse transient, image-stage figures and bounds."""
     data = result.data
     errs = {name: errors(data, e) for name, e in result.estimates.items()}
-    nees, fc, unusable = {}, {}, {}
-    truth = data.target
+    fc, unusable = {}, {}
     for name, est in result.estimates.items():
-        if est.state_cov is not None:
-            e = truth - np.concatenate([est.position, est.velocity], axis=1)
-            ok = np.all(np.isfinite(e), axis=1)
-            n = np.full(data.steps, np.nan)
-            n[ok] = metrics.nees(e[ok], est.state_cov[ok])
-            nees[name] = n
         if est.forecast is not None:
             fc[name], unusable[name] = forecast_errors(data, est)
     transient = {}
@@ -88,22 +67,16 @@ def summarise(result: RunResult, cfg: SeaConfig, run: int) -> RunSummary:
                  "size": (st.camera.width, st.camera.height), "pan": st.camera.pan}
     seen = result.scenario_seen if result.scenario_seen is not None else data.seen
     simulated = None
-    if result.simulated is not None:
+    if result.simulated is not None:  # the same metrics on the simulated angles (their own dataset)
         sim_data, sim = result.simulated
-        simulated = {name: errors(sim_data, e) for name, e in sim.items()}
+        ctx = metric.MetricContext(cfg, run, estimates=sim, estimators=result.estimators)
+        simulated = metric.evaluate(result.metrics, sim_data, sim, ctx)[0]
     delays = {n: result.estimators[n].delay for n in result.estimates if n in result.estimators}
-    crb = {}
-    if st is None:  # angles from images have the image stage's noise, not the model's: no bound
-        truth = sea_bounds.Truth(data.target, data.observer, data.seen, data.disturbed)
-        model = sea_bounds.Model(data.dt, data.height, data.sigma_acc, data.sigma_alpha, data.sigma_beta,
-                                 data.sigma_observer, cfg.prior_speed,
-                                 float(np.deg2rad(cfg.impulse_sigma_deg)) if cfg.scenario == "impulse" else 0.0)
-        b = sea_bounds.Bounds(model, [truth])
-        crb = {d: {q: v[0] for q, v in b.variances(d).items()} for d in {0.0, float("inf"), *delays.values()}}
-    return RunSummary(run, errs, nees, fc, unusable,
-                      {n: e.seconds for n, e in result.estimates.items()}, seen, data.t,
-                      transient, simulated, image, dict(result.failed), delays, crb, data.ship, data.label,
-                      dict(data.repairs or {}))
+    b = result.shared("bounds", lambda: bounds(data, cfg))
+    crb = {} if b is None else {d: {q: v[0] for q, v in b.variances(d).items()}
+                                for d in {0.0, float("inf"), *delays.values()}}
+    return RunSummary(run, errs, fc, unusable, seen, data.t, transient, simulated, image, delays, crb, data.ship,
+                      data.label, dict(data.repairs or {}), failed=dict(result.failed))
 
 
 def bound_variances(runs: list[RunSummary], delay: float) -> dict[str, np.ndarray] | None:
@@ -156,93 +129,56 @@ def impulse_transient(result: RunResult, errs: dict[str, np.ndarray], cfg: SeaCo
     return {n: errs[n][:, 2] - errors(clean.data, e)[:, 2] for n, e in clean.estimates.items()}
 
 
-def curves(runs: list[RunSummary]) -> dict[str, dict[str, np.ndarray]]:
-    """Per estimator, per step over runs: ``position_rmse`` (m, where some run has an
-    estimate) and, for those with a state covariance, ``nees`` (the mean over runs)."""
-    out: dict[str, dict[str, np.ndarray]] = {}
-    for name in runs[0].errors:
-        E = np.stack([r.errors[name][:, :2] for r in runs])
-        entry = {}
-        with np.errstate(invalid="ignore"), warnings.catch_warnings():
-            warnings.simplefilter("ignore", RuntimeWarning)  # steps no run has (a bad frame in each)
-            if np.isfinite(E).any():
-                entry["position_rmse"] = np.sqrt(np.nanmean(np.sum(E**2, axis=2), axis=0))
-            if name in runs[0].nees:
-                entry["nees"] = np.nanmean(np.stack([r.nees[name] for r in runs]), axis=0)
-        out[name] = entry
-    return out
-
-
-def statistics(cfg: SeaConfig, runs: list[RunSummary], label: str = "") -> dict:
-    """Table 2's statistics per estimator (mean and spread over runs) as the metrics JSON."""
-    names = list(runs[0].errors)
-    T = len(runs[0].t)
-    result: dict = {"experiment": "sea", "scenario": cfg.scenario, "seed": cfg.seed,
-                    "runs": len(runs), "steps": T, "label": label, "config": cfg.to_json(),
-                    "units": {"x": "m", "y": "m", "range": "m", "alpha": "arcmin",
-                              "beta": "arcmin", "seconds": "s", "recovery": "s",
-                              "forecast": "m (position), arcmin (alpha, beta)"},
-                    "paper_table2": TABLE2, "estimators": {}}
+def statistics(cfg: SeaConfig, runs: list[RunSummary], stats: dict) -> None:
+    """What the metrics JSON holds beyond the metrics (Table 2's figures are metrics): the steps,
+    the units, the paper's Table 2, and per estimator the bound it is held to, the impulse's
+    transient, the errors during a track loss and the forecasts; the image stage, what reading
+    real files repaired, every ship of ``--mmsi all``, the same runs on the simulated angles."""
+    stats.update({"steps": len(runs[0].t), "paper_table2": TABLE2,
+                  "units": {"x": "m", "y": "m", "range": "m", "alpha": "arcmin", "beta": "arcmin", "seconds": "s",
+                            "recovery": "s", "forecast": "m (position), arcmin (alpha, beta)"}})
     scale = np.array([1.0, 1.0, to_arcmin(1.0), to_arcmin(1.0), 1.0])
-    for name in names:
-        raw = np.stack([r.errors[name] for r in runs])
-        E = raw * scale  # (runs, T, 5)
-        b = metrics.bias(E, axis=1)
-        rm = metrics.rmse(E, axis=1)
-        mx = metrics.max_abs(E, axis=1)
-        entry: dict = {
-            "rmse": _named(rm.mean(axis=0)), "rmse_std": _named(rm.std(axis=0)),
-            "bias": _named(b.mean(axis=0)), "bias_std": _named(b.std(axis=0)),
-            "max": _named(mx.mean(axis=0)),
-            "position_rmse": float(np.sqrt(np.nanmean(E[..., 0] ** 2 + E[..., 1] ** 2))),
-            "coverage": float(np.mean(np.isfinite(E[..., 0]))),
-            "seconds": float(np.mean([r.seconds[name] for r in runs])),
-        }
+    for name in runs[0].errors:
+        entry = stats["estimators"].setdefault(name, {})
         delay = runs[0].delays.get(name, 0.0)
-        V = bound_variances(runs, delay)
-        if V is not None:
-            entry["bound"], entry["efficiency"], entry["efficiency_se"] = sea_bounds.summary(
-                V, raw, {"alpha": to_arcmin(1.0), "beta": to_arcmin(1.0)})
+        if bound_variances(runs, delay) is not None:
             entry["bound_kind"] = bound_kind(delay)
         if name in runs[0].transient:
             D = np.stack([r.transient[name] for r in runs]) * scale[2]
             entry["recovery"] = _recovery(cfg, runs[0].t, D, cfg.sigma_alpha_arcmin)
+        E = np.stack([r.errors[name] for r in runs]) * scale  # (runs, T, 5)
         lost = ~runs[0].seen  # the same steps in every run: the scenario's loss window
         if lost.any() and np.isfinite(E[:, lost, 0]).any():
             entry["rmse_during_loss"] = _named(metrics.rmse(E[:, lost].reshape(-1, 5), axis=0))
-        if name in runs[0].nees:
-            N = np.stack([r.nees[name] for r in runs])
-            per_step = np.nanmean(N, axis=0)
-            lo, hi = metrics.chi2_band(4, len(runs))
-            entry["anees"] = float(np.nanmean(per_step))
-            entry["anees_band"] = [lo, hi]
-            entry["nees_inside_band"] = float(np.nanmean((per_step >= lo) & (per_step <= hi)))
         if name in runs[0].forecast_err:
             F = np.stack([r.forecast_err[name] for r in runs])
             U = np.stack([r.forecast_unusable[name] for r in runs])
             entry["forecast"] = _forecast_stats(cfg, F, U)
             entry["forecast_rmse"] = {**entry["forecast"]["position"]["rmse"], "steps": cfg.horizon}
-        result["estimators"][name] = entry
     if runs[0].image is not None:
-        result["images"] = image_statistics(runs)
+        stats["images"] = image_statistics(runs)
     if runs[0].repairs:
-        result["data_repairs"] = dict(runs[0].repairs)
+        stats["data_repairs"] = dict(runs[0].repairs)
     if cfg.scenario == "ais" and cfg.mmsi == ALL_SHIPS:
-        result.update(ship_statistics(cfg, runs))
+        stats.update(ship_statistics(cfg, runs))
     if runs[0].simulated is not None:
-        sim = [replace(r, errors=r.simulated, nees={}, forecast_err={}, forecast_unusable={}, transient={},
-                       simulated=None, image=None, failed={}, bounds={}) for r in runs]
-        result["simulated"] = {"note": "the same runs' estimators on the simulated angles",
-                               "estimators": statistics(cfg, sim, label)["estimators"]}
-    return result
+        figures = metric.statistics(_metrics(cfg), [r.simulated for r in runs])
+        stats["simulated"] = metric.add_renamed({"note": "the same runs' estimators on the simulated angles",
+                                                 "estimators": figures}, RENAMED)
 
 
-SHIP_FIGURES = (("position_rmse", None), ("rmse", "x"), ("rmse", "y"), ("rmse", "alpha"), ("rmse", "beta"))
+def _metrics(cfg: SeaConfig) -> list[metric.Metric]:
+    from workbench.experiments.sea.experiment import EXPERIMENT
+
+    return EXPERIMENT.metrics(cfg)
+
+
+SHIP_FIGURES = ("position_rmse", "rmse_x", "rmse_y", "rmse_alpha", "rmse_beta")
 """The per-ship figures summarised over ships: position RMSE and the RMSE of x, y (m), alpha, beta (arcmin)."""
 
 
 def ship_statistics(cfg: SeaConfig, runs: list[RunSummary]) -> dict:
-    """``--mmsi all``: each ship's statistics over its own runs (as ``--mmsi <ship>`` gives them),
+    """``--mmsi all``: each ship's figures over its own runs (as ``--mmsi <ship>`` gives them),
     the median and the worst ship per estimator and figure, and the ships left out with the reason.
 
     Returns ``ships`` (MMSI -> label, runs, per estimator position_rmse and Table 2's rmse and
@@ -254,22 +190,23 @@ def ship_statistics(cfg: SeaConfig, runs: list[RunSummary]) -> dict:
     groups: dict[int, list[RunSummary]] = {}
     for r in runs:
         groups.setdefault(int(r.ship), []).append(r)
+    keep = ("position_rmse", *(f"{g}_{q}" for g in ("rmse", "bias") for q in QUANTITIES))
     ships = {}
     for mmsi, rs in groups.items():
-        st = statistics(replace(cfg, mmsi=mmsi), rs, rs[0].label)
-        ships[str(mmsi)] = {"label": rs[0].label, "runs": len(rs), "estimators": {
-            name: {"position_rmse": e["position_rmse"], "rmse": e["rmse"], "bias": e["bias"]}
-            for name, e in st["estimators"].items()}}
+        figures = metric.statistics(_metrics(cfg), [r.metrics for r in rs])
+        entries = {name: {k: e[k] for k in keep if k in e} for name, e in figures.items()}
+        renamed = {old: new for old, new in RENAMED.items() if old.split(".")[0] in ("rmse", "bias")}
+        ships[str(mmsi)] = {"label": rs[0].label, "runs": len(rs),
+                            "estimators": metric.add_renamed({"estimators": entries}, renamed)["estimators"]}
     over: dict = {}
     for name in runs[0].errors:
         over[name] = {}
-        for key, q in SHIP_FIGURES:
-            values = np.array([s["estimators"][name][key] if q is None else s["estimators"][name][key][q]
-                               for s in ships.values()])
+        for key in SHIP_FIGURES:
+            values = np.array([np.nan if s["estimators"][name].get(key) is None else s["estimators"][name][key]
+                               for s in ships.values()], float)
             worst = int(np.nanargmax(values)) if np.isfinite(values).any() else 0
-            over[name][key if q is None else f"rmse_{q}"] = {
-                "median": float(np.nanmedian(values)), "worst": float(values[worst]),
-                "worst_mmsi": int(list(ships)[worst]), "mean": float(np.nanmean(values))}
+            over[name][key] = {"median": float(np.nanmedian(values)), "worst": float(values[worst]),
+                               "worst_mmsi": int(list(ships)[worst]), "mean": float(np.nanmean(values))}
     _, skipped = ais.ship_set(cfg.data, cfg.duration, cfg.ais_max_gap)
     return {"ships": ships, "over_ships": over, "ships_skipped": {str(m): why for m, why in skipped.items()},
             "label": f"every usable ship: {len(ships)} run, {len(skipped)} skipped"}
@@ -376,34 +313,3 @@ def _recovery(cfg: SeaConfig, t: np.ndarray, transient: np.ndarray, level: float
     return {"seconds": float(max(0.0, last - cfg.impulse_end)), "level_arcmin": level,
             "settled": not bool(over.size and over[-1] == len(t) - 1),
             "peak_arcmin": float(np.nanmax(rms))}
-
-
-RUN_METRICS = {"position_rmse": "m", "rmse_x": "m", "rmse_y": "m", "rmse_alpha": "arcmin", "rmse_beta": "arcmin",
-               "bias_x": "m", "bias_y": "m", "anees": "4 states", "coverage": "fraction", "seconds": "s",
-               "position_bound": "m", "position_efficiency": "RMSE / bound"}
-"""The per-run figures of a sweep's tidy table, and their units."""
-
-
-def run_metrics(summary: RunSummary, cfg: SeaConfig) -> dict[str, dict[str, float]]:
-    """One run's figures per estimator (a sweep's rows): RMSEs and biases over the run's steps
-    (so their mean over runs is Table 2's), the position RMSE, the time-averaged NEES, the
-    share of steps with an estimate, the seconds; the position's Cramér-Rao bound from this run
-    alone and the efficiency against it."""
-    out = {}
-    for name, E in summary.errors.items():
-        with np.errstate(invalid="ignore"), warnings.catch_warnings():
-            warnings.simplefilter("ignore", RuntimeWarning)
-            rm = metrics.rmse(E, axis=0)
-            b = metrics.bias(E, axis=0)
-            entry = {"position_rmse": float(np.sqrt(np.nanmean(E[:, 0] ** 2 + E[:, 1] ** 2))),
-                     "rmse_x": float(rm[0]), "rmse_y": float(rm[1]), "rmse_alpha": float(to_arcmin(rm[2])),
-                     "rmse_beta": float(to_arcmin(rm[3])), "bias_x": float(b[0]), "bias_y": float(b[1]),
-                     "coverage": float(np.mean(np.isfinite(E[:, 0]))), "seconds": float(summary.seconds[name])}
-            if name in summary.nees:
-                entry["anees"] = float(np.nanmean(summary.nees[name]))
-            V = bound_variances([summary], summary.delays.get(name, 0.0))
-            if V is not None:
-                bound, eff, _ = sea_bounds.summary(V, E[None], {})
-                entry["position_bound"], entry["position_efficiency"] = bound["position"], eff["position"]
-        out[name] = entry
-    return out

@@ -22,8 +22,7 @@ import gtsam
 import numpy as np
 from gtsam.symbol_shorthand import P, V
 
-from workbench.experiments.contract import RunContext
-from workbench.experiments.plugins import estimator
+from workbench.experiments.estimator import RunContext, estimator
 from workbench.experiments.sea import smoother
 from workbench.experiments.sea.config import SeaConfig
 from workbench.experiments.sea.estimate import Estimate, from_positions

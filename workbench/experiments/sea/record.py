@@ -25,7 +25,9 @@ import rerun.blueprint as rrb
 
 from workbench.estimation import metrics
 from workbench.estimation.angles import to_arcmin
-from workbench.experiments.sea.evaluate import RunSummary, bound_variances, curves
+from workbench.experiments import plots as metric_plots
+from workbench.experiments.sea import metrics as sea_metrics
+from workbench.experiments.sea.evaluate import RunSummary, bound_variances
 from workbench.experiments.sea.run import RunResult
 from workbench.recording import draw
 from workbench.recording import layout as views
@@ -57,8 +59,8 @@ def plots(first: RunResult, runs: list[RunSummary]) -> dict[str, views.Curves]:
            "/errors/y": views.Curves(t, {n: v[:, 1] for n, v in e.items()}, "m"),
            "/errors/alpha": views.Curves(t, {n: to_arcmin(v[:, 2]) for n, v in e.items()}, "arcmin"),
            "/errors/beta": views.Curves(t, {n: to_arcmin(v[:, 3]) for n, v in e.items()}, "arcmin")}
-    mc = curves(runs)
-    rmse = views.Curves(t, {n: c["position_rmse"] for n, c in mc.items() if "position_rmse" in c}, "m")
+    known = metric_plots.by_name(first.metrics)
+    rmse = metric_plots.over_runs(known["position_rmse"], runs) or views.Curves(t, {}, "m")
     for key, delay in (("bound_filtering", 0.0), ("bound_smoothing", float("inf"))):
         V = bound_variances(runs, delay)
         if V is not None:
@@ -66,21 +68,21 @@ def plots(first: RunResult, runs: list[RunSummary]) -> dict[str, views.Curves]:
             rmse.fixed += (key,)
             rmse.labels[key] = f"Cramér-Rao, {key[6:]}"
     out["/monte_carlo/position_rmse"] = rmse
-    nees = views.Curves(t, {n: c["nees"] for n, c in mc.items() if "nees" in c})
-    if nees.series:
-        lo, hi = metrics.chi2_band(4, len(runs))
-        nees.series.update(bound_lo=np.full_like(t, lo), bound_hi=np.full_like(t, hi))
+    nees = metric_plots.over_runs(known["anees"], runs)
+    if nees is not None:  # the band's keys as the recording has always named them
+        nees.series["bound_lo"], nees.series["bound_hi"] = nees.series.pop("band_lo"), nees.series.pop("band_hi")
         nees.fixed, nees.labels = ("bound_lo", "bound_hi"), {"bound_lo": "95 % low", "bound_hi": "95 % high"}
-    out["/monte_carlo/nees"] = nees
-    return out
+    out["/monte_carlo/nees"] = nees if nees is not None else views.Curves(t, {})
+    return out | metric_plots.extra(first.metrics, runs, sea_metrics.CURVES)
 
 
 def blueprint(curves: dict[str, views.Curves], images: bool = False, span: tuple[float, float] = (0.0, 72.0),
-              scene: np.ndarray | None = None) -> rrb.Blueprint:
+              scene: np.ndarray | None = None, extra: rrb.Vertical | None = None) -> rrb.Blueprint:
     """The top-down map on the left (framed on ``scene``, the observer's and the object's
     tracks); named tabs of angles and range, errors, the curves over runs and the results on
     the right; every plot opens on the whole run ``span``, its axis and legend fitted to its
-    ``curves``. The legend is in the first plot of each tab: the colours are the same below it."""
+    ``curves``; ``extra``: the "metrics" tab. The legend is in the first plot of each tab: the colours are the
+    same below it."""
 
     def plot(origin: str, name: str, legend: bool = True) -> rrb.TimeSeriesView:
         return views.plot(origin, name, span, curves.get(origin), legend=legend)
@@ -103,7 +105,8 @@ def blueprint(curves: dict[str, views.Curves], images: bool = False, span: tuple
         plot("/monte_carlo/nees", "NEES over runs (4 states), grey: 95 % band"),
         name="over runs",
     )
-    tabs = [series, errors, mc, rrb.TextDocumentView(origin="/summary", name="results")]
+    tabs = [series, errors, mc, *([extra] if extra is not None else []),
+            rrb.TextDocumentView(origin="/summary", name="results")]
     scene = np.zeros((1, 2)) if scene is None else scene
     left: rrb.Container | rrb.SpaceView = views.top_down("/map", "map (top-down, m)", scene, margin=1.3)
     if images:
@@ -126,8 +129,10 @@ def blueprint(curves: dict[str, views.Curves], images: bool = False, span: tuple
 def layout(first: RunResult, runs: list[RunSummary]) -> rrb.Blueprint:
     """The default layout of a run's recording."""
     d = first.data
-    return blueprint(plots(first, runs), images=first.images is not None, span=(float(d.t[0]), float(d.t[-1])),
-                     scene=scene(first))
+    span = (float(d.t[0]), float(d.t[-1]))
+    curves = plots(first, runs)
+    return blueprint(curves, images=first.images is not None, span=span, scene=scene(first),
+                     extra=metric_plots.tab(curves, first.metrics, span))
 
 
 def scene(first: RunResult) -> np.ndarray:
@@ -167,16 +172,16 @@ def record_run(rec: rr.RecordingStream, first: RunResult, zero: RunSummary) -> N
             draw.covariance_ellipses(rec, f"{base}/ellipse", TL, t, est.position, est.covariance, rgb)
         if est.forecast is not None:
             draw.polylines(rec, f"{base}/forecast", TL, t, est.forecast, rgb, -0.75 * x)
-    draw.plot_series(rec, TL, plots(first, [zero]), first.estimators, lambda o: not o.startswith("/monte_carlo"),
-                     SERIES)
+    draw.plot_series(rec, TL, plots(first, [zero]), first.estimators,
+                     lambda o: not o.startswith(("/monte_carlo", "/metrics")), SERIES)
     if first.images is not None:
         record_images(rec, first)
 
 
 def record_runs(rec: rr.RecordingStream, first: RunResult, runs: list[RunSummary], table_md: str) -> None:
     """Log the curves over all runs and the results table with how to read the recording."""
-    draw.plot_series(rec, TL, plots(first, runs), first.estimators, lambda o: o.startswith("/monte_carlo"),
-                     SERIES)
+    draw.plot_series(rec, TL, plots(first, runs), first.estimators,
+                     lambda o: o.startswith(("/monte_carlo", "/metrics")), SERIES)
     text = table_md + "\n\n" + how_to_read(first, len(runs))
     rec.log("/summary", rr.TextDocument(text, media_type=rr.MediaType.MARKDOWN), static=True)
 

@@ -5,48 +5,42 @@ from __future__ import annotations
 
 import numpy as np
 
-from workbench.estimation import bounds
+from workbench.experiments import markdown
+from workbench.experiments.sea.metrics import BOUNDS, METRICS, TABLE
 from workbench.experiments.sea.paper import TABLE2
-
-COLS = ("x", "y", "alpha", "beta")
 
 
 def table(stats: dict) -> str:
     """Markdown (also readable as plain text)."""
     runs = stats["runs"]
-    head = ("| estimator | rmse x m | rmse y m | rmse alpha ' | rmse beta ' | bias x m | bias y m "
-            "| bias alpha ' | bias beta ' | s/run |")
+    cols = markdown.metric_columns(stats, METRICS, TABLE)
     lines = [f"**sea / {stats['scenario']}** ({stats.get('label', '')}), {runs} run(s), "
-             f"seed {stats['seed']}; mean +- std over runs", "", head, "|" + "---|" * 10]
+             f"seed {stats['seed']}; mean +- std over runs", ""]
+    rows = []
     im = stats.get("images")
     if im is not None:
-        cells = ["", "", _pm(im["rmse"]["alpha"], im["rmse_std"]["alpha"], runs),
-                 _pm(im["rmse"]["beta"], im["rmse_std"]["beta"], runs), "", "",
-                 _pm(im["bias"]["alpha"], im["bias_std"]["alpha"], runs),
-                 _pm(im["bias"]["beta"], im["bias_std"]["beta"], runs)]
-        lines.append("| image stage (angles) | " + " | ".join(cells) + " | |")
+        angles = {f"{g}_{q}": (im[g][q], im[f"{g}_std"][q]) for g in ("rmse", "bias") for q in ("alpha", "beta")}
+        rows.append(["image stage (angles)", *(_pm(*angles[k], runs) if k in angles else "" for k, _, _ in cols)])
         cfg = stats["config"]
-        lines.append(f"| simulated angles (noise) | | | {cfg['sigma_alpha_arcmin']:g} | {cfg['sigma_beta_arcmin']:g} "
-                     "| | | 0 | 0 | |")
+        noise = {"rmse_alpha": f"{cfg['sigma_alpha_arcmin']:g}", "rmse_beta": f"{cfg['sigma_beta_arcmin']:g}",
+                 "bias_alpha": "0", "bias_beta": "0"}
+        rows.append(["simulated angles (noise)", *(noise.get(k, "") for k, _, _ in cols)])
     tag = " (images)" if im is not None else ""
     for name, e in stats["estimators"].items():
-        cells = [_pm(e["rmse"][c], e["rmse_std"][c], runs) for c in COLS]
-        cells += [_pm(e["bias"][c], e["bias_std"][c], runs) for c in COLS]
-        lines.append(f"| {name}{tag} | " + " | ".join(cells) + f" | {e['seconds']:.3f} |")
+        rows.append([f"{name}{tag}", *(_cell(e, k, fmt, runs) for k, _, fmt in cols)])
     for name, e in stats.get("simulated", {}).get("estimators", {}).items():
-        cells = [_pm(e["rmse"][c], e["rmse_std"][c], runs) for c in COLS]
-        cells += [_pm(e["bias"][c], e["bias_std"][c], runs) for c in COLS]
-        lines.append(f"| {name} (simulated) | " + " | ".join(cells) + " | |")
+        rows.append([f"{name} (simulated)", *(_cell(e, k, fmt, runs) if k != "seconds" else "" for k, _, fmt in cols)])
     if stats["scenario"] in ("paper", "track-loss", "impulse"):
         for name, row in TABLE2.items():
-            cells = [f"{row['rmse'][c]:g}" for c in COLS] + [f"{row['bias'][c]:g}" for c in COLS]
-            lines.append(f"| paper: {name} | " + " | ".join(cells) + " | |")
+            rows.append([f"paper: {name}", *(f"{row[k.split('_')[0]][k.split('_')[1]]:g}"
+                                             if k.split("_")[0] in ("rmse", "bias") else "" for k, _, _ in cols)])
+    lines += markdown.table(["estimator", *(title for _, title, _ in cols)], rows)
     extra = []
     for name, e in stats["estimators"].items():
         bits = [f"position rmse {e['position_rmse']:.2f} m"]
-        if e["coverage"] < 1.0:
+        if e.get("coverage", 1.0) < 1.0:
             bits.append(f"estimates {100 * e['coverage']:.0f} % of steps")
-        if "anees" in e:
+        if e.get("anees") is not None:
             lo, hi = e["anees_band"]
             bits.append(f"ANEES {e['anees']:.2f} (95 % band {lo:.2f}-{hi:.2f})")
         if "recovery" in e:
@@ -73,11 +67,20 @@ def table(stats: dict) -> str:
     if stats.get("data_repairs"):
         extra += ["", "Reading the data: " + ", ".join(f"{k.replace('_', ' ')} {v}"
                                                        for k, v in stats["data_repairs"].items())]
-    body = "\n".join(lines + [""] + bounds.table(stats, (("position", "m"), ("range", "m"), ("alpha", "'"),
-                                                          ("beta", "'"))) + extra)
+    body = "\n".join(lines + [""] + markdown.bounds_table(stats, BOUNDS) + extra)
     if "ships" in stats:
         return ships_table(stats) + "\n\nEvery ship's runs pooled:\n\n" + body
     return body
+
+
+def _cell(e: dict, key: str, fmt: str, runs: int) -> str:
+    """A figure of Table 2 with its spread over runs (``+- <key>_std``) where there is one."""
+    if e.get(key) is None:
+        return "-"
+    if key == "seconds":
+        return f"{e[key]:{fmt}}"
+    std = e.get(f"{key}_std")
+    return _pm(e[key], std if std is not None else 0.0, runs)
 
 
 def ships_table(stats: dict) -> str:

@@ -8,25 +8,23 @@ run once more on the simulated angles of the same run for comparison. Evaluation
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
 from workbench.errors import require
-from workbench.experiments.contract import Estimator, RunContext, estimate_all
+from workbench.experiments import contract
+from workbench.experiments.estimator import Estimator, RunContext, estimate_all
 from workbench.experiments.sea.config import ALL_SHIPS, SeaConfig
 from workbench.experiments.sea.estimate import Estimate, check
 from workbench.experiments.sea.scenario import SeaData, simulate
 
 
 @dataclass
-class RunResult:
-    """One run: its data and every estimate (and what failed)."""
+class RunResult(contract.RunResult):
+    """One run (:class:`~workbench.experiments.contract.RunResult`) and, with ``from_images``, its
+    image stage and the same run's estimates on the simulated angles."""
 
-    data: SeaData
-    estimates: dict[str, Estimate]
-    estimators: dict[str, Estimator] = field(default_factory=dict)
-    failed: dict[str, str] = field(default_factory=dict)  # estimators that failed: one line each
     images: object | None = None                  # the image stage (``from_images``): images.ImageStage
     simulated: tuple[SeaData, dict[str, Estimate]] | None = None  # the same run on simulated angles
     scenario_seen: np.ndarray | None = None       # the scenario's own seen mask
@@ -93,15 +91,18 @@ def run_once(cfg: SeaConfig, run: int, estimators: list[Estimator], record: bool
              threads: int = 1) -> RunResult:
     """One run: every estimator on the same data, each estimate checked (:func:`.estimate.check`).
     ``record``: the recorded run (covariances from the smoothers, the frames kept)."""
+    from workbench.experiments.sea.experiment import EXPERIMENT
+
     data = make_data(cfg, run)
-    table = {e.name: e for e in estimators}
     if not cfg.from_images:
-        est, failed = estimate_all(estimators, data, cfg, RunContext(run, record), check)
-        return RunResult(data, est, table, failed)
+        return contract.run_estimators(EXPERIMENT, cfg, run, estimators, data, record, threads)
     from workbench.experiments.sea import images
 
     stage = images.measure(data, cfg, run, record)
     img = images.from_stage(data, stage)
-    est, failed = estimate_all(estimators, img, cfg, RunContext(run, record), check)
+    res = contract.run_estimators(EXPERIMENT, cfg, run, estimators, img, record, threads, images=stage,
+                                  scenario_seen=data.seen)
     sim, failed_sim = estimate_all(estimators, data, cfg, RunContext(run, False), check)
-    return RunResult(img, est, table, {**failed_sim, **failed}, stage, (data, sim), data.seen)
+    res.failed = {**failed_sim, **res.failed}
+    res.simulated = (data, sim)
+    return res

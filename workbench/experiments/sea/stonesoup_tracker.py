@@ -29,7 +29,7 @@ from stonesoup.types.hypothesis import SingleHypothesis
 from stonesoup.types.state import GaussianState
 from stonesoup.updater.kalman import ExtendedKalmanUpdater, UnscentedKalmanUpdater
 
-from workbench.experiments.plugins import estimator
+from workbench.experiments.estimator import estimator
 from workbench.experiments.sea import ekf, geometry
 from workbench.experiments.sea.config import SeaConfig
 from workbench.experiments.sea.estimate import Estimate, from_positions

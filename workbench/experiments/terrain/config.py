@@ -16,11 +16,12 @@ Defaults (``spec/terrain.md`` says to choose and document them):
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 from pathlib import Path
 
 from workbench.errors import require
-from workbench.experiments.contract import Option, Scenario, apply_scenario, by_scenario, split_list
+from workbench.experiments.settings import Config, Option, Scenario, apply_scenario, by_scenario
+from workbench.loading import split_list
 
 # the ngi frames are 640 x 1152: a quarter of each side keeps their aspect and ~24 m pixels
 SCENARIOS: dict[str, Scenario] = {s.name: s for s in (
@@ -48,12 +49,10 @@ def parse_size(text: str) -> tuple[int, int]:
 
 
 @dataclass
-class TerrainConfig:
+class TerrainConfig(Config):
     """Everything a terrain run depends on; lengths in m, angles in rad, focal length in mm."""
 
     scenario: str = "synthetic"
-    seed: int = 0
-    runs: int = 1
     size: str = by_scenario("200x200")
     mode: str = "common"
     distribution: str = "uniform"
@@ -88,7 +87,6 @@ class TerrainConfig:
     # the real scene
     data: Path | None = None
     pair: tuple[str, str] = ("0182", "0184")
-    estimators: tuple[str, ...] = ()  # () = the experiment's defaults
 
     def __post_init__(self) -> None:
         apply_scenario(self, SCENARIOS)
@@ -166,14 +164,6 @@ class TerrainConfig:
             require(len(self.pair) == 2 and self.pair[0] != self.pair[1] and all(p in NGI_FRAMES for p in self.pair),
                     f"--pair must name two different frames of {', '.join(NGI_FRAMES)}")
         return self
-
-    def to_json(self) -> dict:
-        out = asdict(self)
-        out["data"] = str(self.data) if self.data is not None else None
-        out["estimators"] = list(self.estimators)
-        out["sensor_mm"] = list(self.sensor_mm)
-        out["pair"] = list(self.pair)
-        return out
 
 
 OPTIONS: tuple[Option, ...] = (

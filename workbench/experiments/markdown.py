@@ -1,0 +1,100 @@
+"""The results tables' markdown, one helper for every experiment: a number as a table writes it,
+a table from a header and rows, and the metrics' table (a row per estimator, a column per
+metric, from the metrics JSON's one shape, :mod:`.metric`): a plugin's metric gets its column
+without a line written for it.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Mapping, Sequence
+from typing import Any
+
+import numpy as np
+
+
+def number(x: float | None, fmt: str = ".2f") -> str:
+    """``x`` in ``fmt``; ``-`` where there is none (None, NaN)."""
+    if x is None or (isinstance(x, float) and not np.isfinite(x)):
+        return "-"
+    return f"{x:{fmt}}"
+
+
+def table(header: Sequence[str], rows: Iterable[Sequence[Any]]) -> list[str]:
+    """Markdown lines of a table (also readable as plain text)."""
+    lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+    lines += ["| " + " | ".join(str(c) for c in row) + " |" for row in rows]
+    return lines
+
+
+def metric_columns(stats: Mapping, builtin: Sequence[Any], columns: Sequence[str]) -> list[tuple[str, str, str]]:
+    """The metrics' table columns: ``(metric, title, format)`` for ``columns`` (the experiment's
+    choice of its ``builtin`` metrics) and every plugin metric the metrics JSON describes."""
+    known = {m.name: m for m in builtin}
+    described = stats.get("metric_table", {})
+    out = [(n, known[n].title, known[n].fmt) for n in columns if n in known]
+    for name, d in described.items():
+        if d.get("source", "built-in") != "built-in" and name not in columns:
+            out.append((name, name + (f" {d['unit']}" if d.get("unit") else ""), ".3g"))
+    return out
+
+
+def metric_table(stats: Mapping, builtin: Sequence[Any], columns: Sequence[str], spread: bool = False) -> list[str]:
+    """A row per estimator, a column per metric (:func:`metric_columns`); ``spread``: each figure
+    with its spread over runs (``+- <metric>_std``) where there is one and more than one run."""
+    cols = metric_columns(stats, builtin, columns)
+    runs = stats.get("runs", 1)
+    rows = []
+    for name, e in stats["estimators"].items():
+        cells = [name]
+        for key, _, fmt in cols:
+            cell = number(e.get(key), fmt)
+            std = e.get(f"{key}_std")
+            if spread and runs > 1 and std is not None and cell != "-":
+                cell += f" +- {std:.2f}"
+            cells.append(cell)
+        rows.append(cells)
+    return table(["estimator", *(title for _, title, _ in cols)], rows)
+
+
+def bounds_table(stats: Mapping, quantities: Sequence[tuple[str, str, str, str]]) -> list[str]:
+    """Markdown lines: each estimator's bound kind, its bounds and efficiencies (+- their Monte
+    Carlo standard errors) for ``quantities`` ((quantity, unit, bound metric, efficiency metric),
+    ...); a note naming any estimator below its bound by more than three standard errors (it
+    cannot be, on these data)."""
+    rows = [(n, e) for n, e in stats["estimators"].items() if any(b in e for _, _, b, _ in quantities)]
+    if not rows:
+        return []
+    head = ["estimator", "held to"]
+    for q, u, _, _ in quantities:
+        head += [f"{q} bound {u}", "efficiency"]
+    out = ["**Cramér-Rao bounds**: efficiency = RMSE / bound (1: as good as any estimator can be on these data; "
+           "+- its Monte Carlo standard error); a causal estimator is held to the filtering bound, a smoother to "
+           "the smoothing bound", ""]
+    body, below = [], []
+    for name, e in rows:
+        cells = [name, e.get("bound_kind", "")]
+        for q, _, b, f in quantities:
+            cells += [f"{e[b]:.3g}" if e.get(b) is not None else "", _efficiency(e, f)]
+            if _below(e, f):
+                below.append(f"{name} ({q})")
+        body.append(cells)
+    out += table(head, body)
+    if below:
+        out += ["", "**Below the bound**, beyond the Monte Carlo error: " + ", ".join(below)
+                + ". No estimator can be on these data: it knows more than them (the truth?) or the bound's "
+                  "model is not the data's; check it."]
+    return out + [""]
+
+
+def _below(e: Mapping, key: str) -> bool:
+    """An efficiency under 1 by more than three of its standard errors (none without them: one
+    run's error is one draw, as likely small as large)."""
+    eff, se = e.get(key), e.get(f"{key}_se")
+    return eff is not None and se is not None and np.isfinite(eff) and eff + 3 * se < 1.0
+
+
+def _efficiency(e: Mapping, key: str) -> str:
+    eff, se = e.get(key), e.get(f"{key}_se")
+    if eff is None or not np.isfinite(eff):
+        return ""
+    return f"{eff:.2f}" + (f" +- {se:.2f}" if se is not None else "") + (" (below!)" if _below(e, key) else "")

@@ -1,0 +1,272 @@
+"""The omni experiment's metrics (:mod:`workbench.experiments.metric`): each a function of a run's
+dataset and one estimate, scored on the dataset's grid (the graph's keyframes, where every
+estimator has a pose), errors ``truth - estimate`` with the heading wrapped; the figures count
+the steps from ``settle`` seconds on (the paper's claims are for the settled filter), and each
+time series also gives its figure over the whole run (``<metric>_whole_run``).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from workbench.estimation.alignment import umeyama
+from workbench.experiments.metric import Metric, MetricContext, Values
+from workbench.experiments.omni import evaluate
+from workbench.experiments.omni.estimate import SlamEstimate
+from workbench.experiments.omni.scenario import OmniData
+
+
+def _pose(data: OmniData, est: SlamEstimate, ctx: MetricContext) -> tuple[np.ndarray, np.ndarray]:
+    return ctx.shared(("pose", ctx.name), lambda: evaluate.on_grid(est, data.grid))
+
+
+def _errors(data: OmniData, est: SlamEstimate, ctx: MetricContext) -> np.ndarray:
+    return ctx.shared(("errors", ctx.name),
+                      lambda: evaluate.pose_errors(data.truth[data.grid], _pose(data, est, ctx)[0]))
+
+
+def _t(data: OmniData) -> np.ndarray:
+    return data.t[data.grid]
+
+
+def position_error(data: OmniData, est: SlamEstimate, ctx: MetricContext) -> Values:
+    e = _errors(data, est, ctx)
+    return Values(np.hypot(e[:, 0], e[:, 1]), _t(data))
+
+
+def heading_error(data: OmniData, est: SlamEstimate, ctx: MetricContext) -> Values:
+    return Values(np.degrees(np.abs(_errors(data, est, ctx)[:, 2])), _t(data))
+
+
+def final_position(data: OmniData, est: SlamEstimate, ctx: MetricContext) -> Values:
+    e = _errors(data, est, ctx)[-1]
+    return Values([np.hypot(e[0], e[1])])
+
+
+def _map_errors(data: OmniData, est: SlamEstimate) -> np.ndarray:
+    m = est.final_map - data.landmarks
+    return np.hypot(m[:, 0], m[:, 1])
+
+
+def map_error(data: OmniData, est: SlamEstimate) -> Values:
+    """Each landmark's error in the final map (m; NaN where not initialised)."""
+    return Values(_map_errors(data, est))
+
+
+def landmarks(data: OmniData, est: SlamEstimate) -> Values:
+    """1 for each landmark in the final map."""
+    return Values(np.isfinite(_map_errors(data, est)).astype(float))
+
+
+def init_delay(data: OmniData, est: SlamEstimate) -> Values:
+    """Seconds from each landmark's first sighting to its initialisation (NaN: never)."""
+    d = np.full(len(data.landmarks), np.nan)
+    ok = est.init_step >= 0
+    d[ok] = data.t[est.init_step[ok]] - data.t[est.first_seen[ok]]
+    return Values(d)
+
+
+def _sigmas(data: OmniData, est: SlamEstimate, ctx: MetricContext) -> np.ndarray:
+    cov = _pose(data, est, ctx)[1]
+    return np.sqrt(np.clip(np.diagonal(cov, axis1=1, axis2=2), 0.0, None))
+
+
+def sigma_position(data: OmniData, est: SlamEstimate, ctx: MetricContext) -> Values:
+    s = _sigmas(data, est, ctx)
+    return Values(np.hypot(s[:, 0], s[:, 1]), _t(data))
+
+
+def sigma_x(data: OmniData, est: SlamEstimate, ctx: MetricContext) -> Values:
+    return Values(_sigmas(data, est, ctx)[:, 0], _t(data))
+
+
+def sigma_y(data: OmniData, est: SlamEstimate, ctx: MetricContext) -> Values:
+    return Values(_sigmas(data, est, ctx)[:, 1], _t(data))
+
+
+def sigma_heading(data: OmniData, est: SlamEstimate, ctx: MetricContext) -> Values:
+    return Values(np.degrees(_sigmas(data, est, ctx)[:, 2]), _t(data))
+
+
+def nees(data: OmniData, est: SlamEstimate, ctx: MetricContext) -> Values:
+    """The pose's NEES (3 dof) at each grid step."""
+    return Values(evaluate.pose_nees(_errors(data, est, ctx), _pose(data, est, ctx)[1]), _t(data))
+
+
+def coverage(data: OmniData, est: SlamEstimate, ctx: MetricContext) -> Values:
+    e = _errors(data, est, ctx)
+    return Values(np.isfinite(np.hypot(e[:, 0], e[:, 1])).astype(float), _t(data))
+
+
+def failures(data: OmniData, est: SlamEstimate) -> Values:
+    return Values([est.failures])
+
+
+def gated(data: OmniData, est: SlamEstimate) -> Values:
+    return Values([est.gated])
+
+
+def _aligned(data: OmniData, est: SlamEstimate, ctx: MetricContext):
+    def make():
+        truth, pose = data.truth[data.grid], _pose(data, est, ctx)[0]
+        a = umeyama(pose[:, :2], truth[:, :2])
+        return evaluate.pose_errors(truth, a.apply(pose)), a
+
+    return ctx.shared(("aligned", ctx.name), make)
+
+
+def aligned_position(data: OmniData, est: SlamEstimate, ctx: MetricContext) -> Values:
+    e = _aligned(data, est, ctx)[0]
+    return Values(np.hypot(e[:, 0], e[:, 1]), _t(data))
+
+
+def aligned_heading(data: OmniData, est: SlamEstimate, ctx: MetricContext) -> Values:
+    return Values(np.degrees(np.abs(_aligned(data, est, ctx)[0][:, 2])), _t(data))
+
+
+def alignment_rotation(data: OmniData, est: SlamEstimate, ctx: MetricContext) -> Values:
+    return Values([np.degrees(_aligned(data, est, ctx)[1].rotation)])
+
+
+def alignment_translation(data: OmniData, est: SlamEstimate, ctx: MetricContext) -> Values:
+    return Values([np.hypot(*_aligned(data, est, ctx)[1].translation)])
+
+
+def _smoothed(data: OmniData, est: SlamEstimate) -> np.ndarray | None:
+    if est.smoothed is None:
+        return None
+    return evaluate.pose_errors(data.truth[data.grid], evaluate.smoothed_on_grid(est, data.grid))
+
+
+def smoothed_position(data: OmniData, est: SlamEstimate) -> Values | None:
+    """A smoother's whole trajectory as it holds it at the end (iSAM2's), against the truth."""
+    e = _smoothed(data, est)
+    return None if e is None else Values(np.hypot(e[:, 0], e[:, 1]), _t(data))
+
+
+def smoothed_heading(data: OmniData, est: SlamEstimate) -> Values | None:
+    e = _smoothed(data, est)
+    return None if e is None else Values(np.degrees(np.abs(e[:, 2])), _t(data))
+
+
+def _bound(data: OmniData, est: SlamEstimate, ctx: MetricContext) -> dict | None:
+    """The run's Cramér-Rao variances for this estimator's delay (filtering for a causal one,
+    smoothing otherwise), or None (bearings from images carry the image stage's noise, not the model's)."""
+    crb = ctx.shared("bounds", lambda: evaluate.bounds(data, ctx.cfg, ctx.products.get("keyframes")))
+    if not crb:
+        return None
+    delay = ctx.estimator.delay if ctx.estimator is not None else 0.0
+    return {**crb[0.0 if delay == 0 else math.inf], "map": crb["map"]}
+
+
+def position_bound(data: OmniData, est: SlamEstimate, ctx: MetricContext) -> Values | None:
+    b, e = _bound(data, est, ctx), position_error(data, est, ctx)
+    if b is None or not np.isfinite(e.values).any():
+        return None
+    return Values(np.where(np.isfinite(e.values), np.sqrt(b["position"]), np.nan), e.t)
+
+
+def heading_bound(data: OmniData, est: SlamEstimate, ctx: MetricContext) -> Values | None:
+    b, e = _bound(data, est, ctx), heading_error(data, est, ctx)
+    if b is None or not np.isfinite(e.values).any():
+        return None
+    return Values(np.where(np.isfinite(e.values), np.degrees(np.sqrt(b["heading"])), np.nan), e.t)
+
+
+def map_bound(data: OmniData, est: SlamEstimate, ctx: MetricContext) -> Values | None:
+    b, m = _bound(data, est, ctx), _map_errors(data, est)
+    ok = np.isfinite(m) & np.isfinite(b["map"]) if b is not None else None
+    if ok is None or not ok.any():
+        return None
+    return Values(np.where(ok, np.sqrt(b["map"]), np.nan))
+
+
+def seconds(data: OmniData, est: SlamEstimate) -> Values:
+    return Values([est.seconds])
+
+
+METRICS: tuple[Metric, ...] = (
+    Metric("position_rmse", position_error, "m", "position error, RMS over the steps and runs", label="pos rmse"),
+    Metric("position_max", position_error, "m", "largest position error", reduce="max", label="pos max"),
+    Metric("heading_rmse", heading_error, "deg", "heading error, RMS", label="head rmse"),
+    Metric("heading_max", heading_error, "deg", "largest heading error", reduce="max", label="head max"),
+    Metric("map_rmse", map_error, "m", "the final map's landmark errors, RMS", label="map rmse"),
+    Metric("final_position", final_position, "m", "the last pose's position error, RMS over runs", label="final"),
+    Metric("sigma_position_max", sigma_position, "m", "largest own position sigma (its x, y in quadrature)",
+           reduce="max", label="sigma pos max"),
+    Metric("sigma_x_max", sigma_x, "m", "largest own sigma of x", reduce="max"),
+    Metric("sigma_y_max", sigma_y, "m", "largest own sigma of y", reduce="max"),
+    Metric("sigma_heading_max", sigma_heading, "deg", "largest own heading sigma", reduce="max",
+           label="sigma head max"),
+    Metric("anees", nees, "", "the pose's NEES (3 dof), mean over the steps and runs", reduce="mean", dimension=3,
+           label="ANEES"),
+    Metric("landmarks", landmarks, "", "landmarks in the final map, mean over runs", reduce="sum", across="mean",
+           fmt=".1f"),
+    Metric("init_seconds_mean", init_delay, "s", "mean delay from a landmark's first sighting to its initialisation",
+           reduce="mean"),
+    Metric("init_seconds_median", init_delay, "s", "median initialisation delay", reduce="median", label="init",
+           fmt=".1f"),
+    Metric("init_seconds_max", init_delay, "s", "longest initialisation delay", reduce="max"),
+    Metric("coverage", coverage, "", "share of the grid's steps with an estimate", reduce="mean", window=False),
+    Metric("failures", failures, "", "rejected updates, summed over runs", reduce="sum", across="sum", fmt=".0f"),
+    Metric("bearings_gated", gated, "", "bearings a gate left out (misreads, outliers), summed over runs",
+           reduce="sum", across="sum", fmt=".0f"),
+    Metric("aligned_position_rmse", aligned_position, "m", "position error after the best rigid alignment "
+           "(evo_ape -a), RMS"),
+    Metric("aligned_heading_rmse", aligned_heading, "deg", "heading error after the best rigid alignment, RMS"),
+    Metric("alignment_rotation", alignment_rotation, "deg", "the best alignment's rotation, RMS over runs"),
+    Metric("alignment_translation", alignment_translation, "m", "the best alignment's translation, RMS over runs"),
+    Metric("smoothed_position_rmse", smoothed_position, "m", "a smoother's whole trajectory as held at the end, "
+           "position RMS"),
+    Metric("smoothed_heading_rmse", smoothed_heading, "deg", "a smoother's whole trajectory as held at the end, "
+           "heading RMS"),
+    Metric("position_bound", position_bound, "m", "the position's Cramér-Rao bound (root of its mean variance)"),
+    Metric("heading_bound", heading_bound, "deg", "the heading's Cramér-Rao bound"),
+    Metric("map_bound", map_bound, "m", "the map's Cramér-Rao bound"),
+    Metric("position_efficiency", None, "", "position RMSE over its bound",
+           efficiency=("position_rmse", "position_bound")),
+    Metric("heading_efficiency", None, "", "heading RMSE over its bound", efficiency=("heading_rmse", "heading_bound")),
+    Metric("map_efficiency", None, "", "map RMSE over its bound", efficiency=("map_rmse", "map_bound")),
+    Metric("seconds", seconds, "s", "seconds a run, mean over runs", reduce="mean", label="time"),
+)
+"""Every omni metric; the results table shows :data:`TABLE`."""
+
+TABLE = ("position_rmse", "position_max", "heading_rmse", "heading_max", "map_rmse", "sigma_position_max",
+         "sigma_heading_max", "anees", "landmarks", "init_seconds_median", "seconds")
+"""The results table's columns."""
+
+CURVES: tuple[str, ...] = ()
+"""Built-in metrics the recording's "metrics" tab draws over runs (beside every plugin's)."""
+
+BOUNDS = (("position", "m", "position_bound", "position_efficiency"), ("heading", "deg", "heading_bound",
+                                                                     "heading_efficiency"),
+          ("map", "m", "map_bound", "map_efficiency"))
+"""The bounds table: quantity, unit, its bound's metric and its efficiency's."""
+
+_NESTED = {"rmse": {"position": "position_rmse", "heading": "heading_rmse", "map": "map_rmse"},
+           "rmse_whole_run": {"position": "position_rmse_whole_run", "heading": "heading_rmse_whole_run"},
+           "max": {"position": "position_max", "heading": "heading_max"},
+           "max_whole_run": {"position": "position_max_whole_run", "heading": "heading_max_whole_run"},
+           "final": {"position": "final_position"},
+           "sigma": {"position_max": "sigma_position_max", "x_max": "sigma_x_max", "y_max": "sigma_y_max",
+                     "heading_max": "sigma_heading_max"},
+           "init_seconds": {"mean": "init_seconds_mean", "median": "init_seconds_median", "max": "init_seconds_max"},
+           "rmse_aligned": {"position": "aligned_position_rmse", "heading": "aligned_heading_rmse"},
+           "rmse_aligned_whole_run": {"position": "aligned_position_rmse_whole_run",
+                                      "heading": "aligned_heading_rmse_whole_run"},
+           "alignment": {"rotation_deg": "alignment_rotation", "translation": "alignment_translation"},
+           "rmse_smoothed": {"position": "smoothed_position_rmse", "heading": "smoothed_heading_rmse"},
+           "rmse_smoothed_whole_run": {"position": "smoothed_position_rmse_whole_run",
+                                       "heading": "smoothed_heading_rmse_whole_run"},
+           "bound": {"position": "position_bound", "heading": "heading_bound", "map": "map_bound"},
+           "efficiency": {"position": "position_efficiency", "heading": "heading_efficiency",
+                          "map": "map_efficiency"},
+           "efficiency_se": {"position": "position_efficiency_se", "heading": "heading_efficiency_se"}}
+RENAMED: dict[str, str] = {
+    **{f"{group}.{key}": new for group, keys in _NESTED.items() for key, new in keys.items()},
+    "nees_inside_band": "anees_inside_band", "landmarks_initialised": "landmarks",
+    "/nees_band": "/metric_table.anees.band",
+}
+"""The metrics JSON's keys before the metric interface (old -> new), kept readable for one release."""

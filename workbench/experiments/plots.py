@@ -1,0 +1,78 @@
+"""The recording's curves of the metrics (:mod:`.metric`), for every experiment's ``record.py``:
+a time-series metric's values at each step of run 0, and its value at each step over the runs
+(the RMS of an error, the mean of a NEES), with the chi-square band of a metric that has one.
+
+An experiment draws the metrics it shows in its own views (by name, at the origins it chooses);
+the others it lists in its ``metrics.CURVES``, and every plugin's time-series metric, go to the
+recording's "metrics" tab (:func:`extra`), without a line of the experiment's written for them.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Mapping, Sequence
+from typing import Any
+
+import numpy as np
+
+from workbench.estimation.metrics import chi2_band
+from workbench.experiments import metric
+from workbench.recording.layout import Curves
+
+BAND = {"band_lo": "95 % low", "band_hi": "95 % high"}
+
+
+def over_runs(m: metric.Metric, summaries: Sequence[Any], names: Iterable[str] | None = None) -> Curves | None:
+    """The metric at each step over the runs, per estimator (``names``: those only), with its
+    band for that many runs; None where it is no time series."""
+    t, series = metric.curves(m, [s.metrics for s in summaries])
+    if names is not None:
+        series = {n: v for n, v in series.items() if n in set(names)}
+    if not series:
+        return None
+    c = Curves(t, series, m.unit)
+    if m.dimension:
+        lo, hi = chi2_band(m.dimension, len(summaries))
+        c.series.update(band_lo=np.full_like(t, lo), band_hi=np.full_like(t, hi))
+        c.fixed, c.labels = tuple(BAND), dict(BAND)
+    return c
+
+
+def by_name(metrics: Iterable[metric.Metric]) -> dict[str, metric.Metric]:
+    return {m.name: m for m in metrics}
+
+
+def extra(metrics: Iterable[metric.Metric], summaries: Sequence[Any], listed: Sequence[str] = ()
+          ) -> dict[str, Curves]:
+    """The "metrics" tab's curves over runs, at ``/metrics/<metric>``: the built-ins ``listed``
+    and every plugin metric that is a time series."""
+    out = {}
+    for m in metrics:
+        if m.name in listed or m.source != "built-in":
+            c = over_runs(m, summaries)
+            if c is not None:
+                out[f"/metrics/{m.name}"] = c
+    return out
+
+
+def titles(metrics: Mapping[str, metric.Metric], curves: Mapping[str, Curves]) -> dict[str, str]:
+    """Each "metrics" tab plot's title: the metric's description and unit, over runs."""
+    out = {}
+    for origin in curves:
+        m = metrics[origin.rsplit("/", 1)[1]]
+        band = ", grey: 95 % band" if m.dimension else ""
+        out[origin] = f"{m.name} over runs" + (f" ({m.unit})" if m.unit else "") + band
+    return out
+
+
+def tab(curves: Mapping[str, Curves], metrics: Iterable[metric.Metric], span: tuple[float, float]) -> Any:
+    """The "metrics" tab (a view per ``/metrics/...`` curve, each fitted to its values), or None."""
+    import rerun.blueprint as rrb
+
+    from workbench.recording import layout
+
+    mine = {o: c for o, c in curves.items() if o.startswith("/metrics/")}
+    if not mine:
+        return None
+    names = titles(by_name(metrics), mine)
+    return rrb.Vertical(*[layout.plot(o, names[o], span, c, legend=i == 0) for i, (o, c) in enumerate(mine.items())],
+                        name="metrics")

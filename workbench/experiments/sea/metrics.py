@@ -1,0 +1,148 @@
+"""The sea experiment's metrics (:mod:`workbench.experiments.metric`): each a function of a run's
+dataset and one estimate, per step, errors ``truth - estimate`` in x, y (m), the azimuth alpha
+and elevation beta (arcmin, alpha wrapped) and the range (m).
+
+Table 2's figures are each run's RMSE, bias and largest error, their mean over the runs and its
+spread (``across="mean"``); the position RMSE and the efficiencies pool every step of every run.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from workbench.estimation import metrics as em
+from workbench.estimation.angles import to_arcmin, wrap
+from workbench.experiments.metric import Metric, MetricContext, Values
+from workbench.experiments.sea import bounds as sea_bounds
+from workbench.experiments.sea.config import SeaConfig
+from workbench.experiments.sea.estimate import Estimate
+from workbench.experiments.sea.scenario import SeaData
+
+QUANTITIES = ("x", "y", "alpha", "beta", "range")
+UNITS = {"x": "m", "y": "m", "alpha": "arcmin", "beta": "arcmin", "range": "m", "position": "m"}
+SCALE = np.array([1.0, 1.0, to_arcmin(1.0), to_arcmin(1.0), 1.0])
+
+
+def errors(data: SeaData, est: Estimate) -> np.ndarray:
+    """Errors ``truth - estimate`` per step: x, y (m), alpha, beta (rad), range (m)."""
+    return np.stack([
+        data.target[:, 0] - est.position[:, 0],
+        data.target[:, 1] - est.position[:, 1],
+        wrap(data.alpha - est.alpha),
+        data.beta - est.beta,
+        data.range - est.range,
+    ], axis=1)
+
+
+def bounds(data: SeaData, cfg: SeaConfig) -> sea_bounds.Bounds | None:
+    """The run's Cramér-Rao bounds (:class:`.bounds.Bounds`, which keeps each delay's once made);
+    none where the angles come from images (their noise is the image stage's, not the model's)."""
+    if cfg.from_images:
+        return None
+    truth = sea_bounds.Truth(data.target, data.observer, data.seen, data.disturbed)
+    model = sea_bounds.Model(data.dt, data.height, data.sigma_acc, data.sigma_alpha, data.sigma_beta,
+                             data.sigma_observer, cfg.prior_speed,
+                             float(np.deg2rad(cfg.impulse_sigma_deg)) if cfg.scenario == "impulse" else 0.0)
+    return sea_bounds.Bounds(model, [truth])
+
+
+def _errors(data: SeaData, est: Estimate, ctx: MetricContext) -> np.ndarray:
+    """``(T, 5)``: x, y (m), alpha, beta (arcmin), range (m)."""
+    return ctx.shared(("errors", ctx.name), lambda: errors(data, est) * SCALE)
+
+
+def position_error(data: SeaData, est: Estimate, ctx: MetricContext) -> Values:
+    e = _errors(data, est, ctx)
+    return Values(np.hypot(e[:, 0], e[:, 1]), data.t)
+
+
+def _quantity(i: int, signed: bool):
+    def fn(data: SeaData, est: Estimate, ctx: MetricContext) -> Values:
+        e = _errors(data, est, ctx)[:, i]
+        return Values(e if signed else np.abs(e), data.t)
+
+    fn.__name__ = f"{'error' if signed else 'abs_error'}_{QUANTITIES[i]}"
+    return fn
+
+
+def nees(data: SeaData, est: Estimate) -> Values | None:
+    """The NEES of (x, y, vx, vy) at each step, where the estimator gives that state's covariance."""
+    if est.state_cov is None:
+        return None
+    e = data.target - np.concatenate([est.position, est.velocity], axis=1)
+    ok = np.all(np.isfinite(e), axis=1)
+    n = np.full(data.steps, np.nan)
+    n[ok] = em.nees(e[ok], est.state_cov[ok])
+    return Values(n, data.t)
+
+
+def coverage(data: SeaData, est: Estimate) -> Values:
+    return Values(np.isfinite(est.position[:, 0]).astype(float), data.t)
+
+
+def _bound(q: str):
+    """The Cramér-Rao bound of quantity ``q`` for the estimator's delay (m, arcmin for the angles) where
+    its error is finite; none where the angles come from images (their noise is the image stage's)."""
+
+    def fn(data: SeaData, est: Estimate, ctx: MetricContext) -> Values | None:
+        b = ctx.shared("bounds", lambda: bounds(data, ctx.cfg))
+        if b is None:
+            return None
+        delay = ctx.estimator.delay if ctx.estimator is not None else 0.0
+        e = _errors(data, est, ctx)
+        err = np.hypot(e[:, 0], e[:, 1]) if q == "position" else e[:, QUANTITIES.index(q)]
+        v = b.variances(delay)[q][0]
+        ok = np.isfinite(err) & np.isfinite(v)
+        if not ok.any():
+            return None
+        scale = to_arcmin(1.0) if q in ("alpha", "beta") else 1.0
+        return Values(np.where(ok, np.sqrt(np.where(ok, v, 0.0)) * scale, np.nan), data.t)
+
+    fn.__name__ = f"{q}_bound"
+    return fn
+
+
+def seconds(data: SeaData, est: Estimate) -> Values:
+    return Values([est.seconds])
+
+
+METRICS: tuple[Metric, ...] = (
+    Metric("position_rmse", position_error, "m", "position error, RMS over every step of every run",
+           label="pos rmse"),
+    *(Metric(f"rmse_{q}", _quantity(i, False), UNITS[q], f"each run's RMS error of {q}, mean over runs",
+             across="mean", label=f"rmse {q}", fmt=".3g") for i, q in enumerate(QUANTITIES)),
+    *(Metric(f"bias_{q}", _quantity(i, True), UNITS[q], f"each run's mean error of {q}, mean over runs",
+             reduce="mean", across="mean", label=f"bias {q}", fmt=".3g") for i, q in enumerate(QUANTITIES)),
+    *(Metric(f"max_{q}", _quantity(i, False), UNITS[q], f"each run's largest error of {q}, mean over runs",
+             reduce="max", across="mean", label=f"max {q}") for i, q in enumerate(QUANTITIES)),
+    Metric("anees", nees, "", "the NEES of (x, y, vx, vy), mean over the steps and runs", reduce="mean",
+           dimension=4, label="ANEES"),
+    Metric("coverage", coverage, "", "share of the steps with an estimate", reduce="mean"),
+    *(Metric(f"{q}_bound", _bound(q), UNITS[q], f"{q}'s Cramér-Rao bound (root of its mean variance)")
+      for q in ("x", "y", "position", "range", "alpha", "beta")),
+    *(Metric(f"{q}_efficiency", None, "", f"{q}'s RMSE over its bound",
+             efficiency=("position_rmse" if q == "position" else f"rmse_{q}", f"{q}_bound"))
+      for q in ("x", "y", "position", "range", "alpha", "beta")),
+    Metric("seconds", seconds, "s", "seconds a run, mean over runs", reduce="mean", label="time", fmt=".3f"),
+)
+"""Every sea metric; the results table shows :data:`TABLE` (each with its spread over runs)."""
+
+TABLE = ("rmse_x", "rmse_y", "rmse_alpha", "rmse_beta", "bias_x", "bias_y", "bias_alpha", "bias_beta", "seconds")
+"""The results table's columns: Table 2's."""
+
+CURVES: tuple[str, ...] = ()
+"""Built-in metrics the recording's "metrics" tab draws over runs (beside every plugin's)."""
+
+BOUNDS = tuple((q, "'" if q in ("alpha", "beta") else "m", f"{q}_bound", f"{q}_efficiency")
+               for q in ("position", "range", "alpha", "beta"))
+"""The bounds table: quantity, unit, its bound's metric and its efficiency's."""
+
+RENAMED: dict[str, str] = {
+    **{f"{group}.{q}": f"{group}_{q}" for group in ("rmse", "bias", "max") for q in QUANTITIES},
+    **{f"{group}_std.{q}": f"{group}_{q}_std" for group in ("rmse", "bias") for q in QUANTITIES},
+    **{f"bound.{q}": f"{q}_bound" for q in ("x", "y", "position", "range", "alpha", "beta")},
+    **{f"efficiency.{q}": f"{q}_efficiency" for q in ("x", "y", "position", "range", "alpha", "beta")},
+    **{f"efficiency_se.{q}": f"{q}_efficiency_se" for q in ("x", "y", "position", "range", "alpha", "beta")},
+    "nees_inside_band": "anees_inside_band",
+}
+"""The metrics JSON's keys before the metric interface (old -> new), kept readable for one release."""
