@@ -44,10 +44,11 @@ from workbench.experiments.terrain.evaluate import RunSummary
 from workbench.experiments.terrain.model import PREFERRED
 from workbench.experiments.terrain.run import RunResult
 from workbench.experiments.terrain.scenario import SUN, Scene
+from workbench.recording import draw
 
 TRUTH = (240, 240, 240)
-COLOUR_NAMES = {"truth": "white", "navigation": "red", SEARCH: "orange", REFINED: "green", ITERATED: "cyan",
-                POSTERIOR: "blue", "gtsam-ba": "violet"}
+COLOUR_NAMES = {"truth": draw.colour_name(TRUTH), **{n: draw.colour_name(e.color) for n, e in TABLE.items()}}
+"""The truth's and the built-ins' colours in words (:func:`draw.colour_name` of their own colours)."""
 BACKGROUND = (24, 28, 34)           # the 3D views' background: the palette reads on it in either theme
 ERROR_COLORMAP = "Viridis"
 TIMELINES = ("hypothesis", "search")
@@ -63,13 +64,6 @@ def color(first: RunResult, name: str) -> tuple[int, int, int]:
         return TRUTH
     est = first.estimators.get(name) or TABLE.get(name)
     return est.color if est is not None else (200, 200, 200)
-
-
-def colour_name(first: RunResult, name: str) -> str:
-    """A colour in words for the legend (the built-ins'), or its hex code (a plugin's)."""
-    if name in COLOUR_NAMES and (name == "truth" or first.estimators.get(name, TABLE.get(name)).builtin):
-        return COLOUR_NAMES[name]
-    return "#{:02x}{:02x}{:02x}".format(*color(first, name))
 
 
 def _best(names: list[str]) -> str:
@@ -442,7 +436,9 @@ def _orthophoto(rec: rr.RecordingStream, sc: Scene, best: Estimate, bounds: tupl
 
 def legend(first: RunResult, origin: np.ndarray) -> str:
     """How to read the recording (markdown, after the table)."""
-    frusta = ", ".join(f"{n} {colour_name(first, n)}" for n in ["truth", *first.estimates])
+    shown = {n: first.estimators.get(n) or TABLE[n] for n in first.estimates}
+    frusta = f"truth {draw.colour_name(TRUTH)}, " + draw.colour_key(shown, plugin="a plugin")
+    tie_points, winner = (draw.colour_name(color(first, n)) for n in ("gtsam-ba", SEARCH))
     where = ("" if not origin.any() else
              f"; local origin at X = {origin[0]:.0f} m, Y = {origin[1]:.0f} m of the data's projection")
     lines = [
@@ -450,7 +446,7 @@ def legend(first: RunResult, origin: np.ndarray) -> str:
         "**Reading the recording** (run 0, error mode `" + first.scene_mode + "`; world X east, Y north, "
         "Z up, metres" + where + ")",
         "",
-        f"- frusta: {frusta}; the truth's carry the images (tie points violet).",
+        f"- frusta: {frusta}; the truth's carry the images (tie points {tie_points}).",
         "- DEM: textured with both images at the true orientation; warm hillshade where no image sees it.",
     ]
     if first.search is not None:
@@ -458,7 +454,7 @@ def legend(first: RunResult, origin: np.ndarray) -> str:
         lines.append(
             f"- search: each hypothesis at the image II position it implies, its attitude error as an offset of "
             f"{g.scale / 1000.0:.3g} m per mrad (pitch along X, roll along Y, yaw along Z); colour = rank of I_pq "
-            "(yellow lowest, dark purple highest); the orange point and box: the lowest hypothesis so far and its "
+            f"(yellow lowest, dark purple highest); the {winner} point and box: the lowest hypothesis so far and its "
             "position cell (the winner at the end); markers: truth and every estimate drawn the same way. Scrub the "
             "`hypothesis` (or `search` step) timeline.")
     lines.append("- ground error maps: per-pixel horizontal error of each halftone model over image II, "
