@@ -34,9 +34,10 @@ def colour_name(rgb: tuple[int, int, int]) -> str:
     return name if near else "#{:02x}{:02x}{:02x}".format(*rgb)
 
 
-def colour_key(estimators: dict) -> str:
-    """``ekf red, gtsam violet, ...``: each estimator's colour in words (a plugin's marked)."""
-    return ", ".join(f"{n} {colour_name(e.color)}" + ("" if e.builtin else " (a plugin, drawn wider)")
+def colour_key(estimators: dict, plugin: str = "a plugin, drawn wider") -> str:
+    """``ekf red, gtsam violet, ...``: each estimator's colour in words, a plugin's marked
+    ``(<plugin>)`` (where the experiment draws plugins as the built-ins, say only that)."""
+    return ", ".join(f"{n} {colour_name(e.color)}" + ("" if e.builtin else f" ({plugin})")
                      for n, e in estimators.items())
 
 
@@ -219,3 +220,89 @@ def poses(rec: rr.RecordingStream, path: str, timeline: str, t: np.ndarray, pose
         rec.send_columns(path, indexes=[times(timeline, t[ok])],
                          columns=rr.Arrows3D.columns(origins=_xyz(p[:, :2], z), vectors=vec))
     return int(ok.sum())
+
+
+# --- static scenes: cameras, textured meshes, value images ---------------------------------
+
+LABEL = (120, 120, 120)
+"""Text drawn inside a view (a legend's ticks and title): readable on the light and the dark theme."""
+NICE = (1.0, 1.2, 1.5, 2.0, 2.5, 3.0, 4.0, 5.0, 6.0, 8.0, 10.0)
+"""A legend's possible tops, times a power of ten (:func:`nice_ceiling`)."""
+
+
+def ui_points(points: float) -> float:
+    """A radius in UI points (the same on screen at any zoom) rather than scene units."""
+    return float(rr.components.Radius.ui_points(points))
+
+
+def gray8(image: np.ndarray) -> np.ndarray:
+    """A grey image with values in [0, 1] as ``uint8`` (clipped)."""
+    return (255 * np.clip(image, 0.0, 1.0)).astype(np.uint8)
+
+
+def stride(image: np.ndarray, max_side: int) -> int:
+    """Every how-many-th pixel keeps ``image`` at most ``max_side`` pixels on its longer side."""
+    return max(1, -(-max(image.shape[:2]) // max_side))
+
+
+def nice_ceiling(x: float) -> float:
+    """The smallest of 1, 1.2, 1.5, 2, 2.5, 3, 4, 5, 6, 8 times a power of ten at or above ``x``
+    (a legend's top: at most a third above the largest value, the widest step of :data:`NICE`)."""
+    if not np.isfinite(x) or x <= 0:
+        return 1.0
+    p = 10.0 ** np.floor(np.log10(x))
+    return float(next(m * p for m in NICE if m * p >= x * (1 - 1e-9)))
+
+
+def frustum(rec: rr.RecordingStream, path: str, position: np.ndarray, rotation: np.ndarray,
+            focal: tuple[float, float], principal: tuple[float, float], size: tuple[int, int],
+            rgb: tuple[int, int, int], line_width: float, plane: float, image: np.ndarray | None = None) -> None:
+    """A pinhole camera at ``position`` with ``rotation`` (camera to world, 3x3), static: its
+    frustum in ``rgb`` reaching ``plane`` scene units, no axes, and ``image`` (any array
+    ``rr.Image`` takes) on it. ``focal`` and ``principal`` in pixels with pixel centres at
+    integers (OpenCV's convention), ``size`` (width, height); the principal point moves by half
+    a pixel to Rerun's, whose pixel centres are at half-integers."""
+    rec.log(path, rr.Transform3D(translation=position, mat3x3=rotation), rr.TransformAxes3D(0.0), static=True)
+    rec.log(path, rr.Pinhole(focal_length=list(focal), principal_point=[principal[0] + 0.5, principal[1] + 0.5],
+                             width=size[0], height=size[1], image_plane_distance=plane, color=rgb,
+                             line_width=line_width), static=True)
+    if image is not None:
+        rec.log(path, rr.Image(image), static=True)
+
+
+def textured_mesh(rec: rr.RecordingStream, path: str, vertices: np.ndarray, triangles: np.ndarray,
+                  texcoords: np.ndarray, texture: np.ndarray) -> None:
+    """A static triangle mesh, ``vertices (N, 3)``, ``triangles (M, 3)``, with an image draped
+    on it: ``texture (H, W, 3)`` uint8 and each vertex's ``texcoords (N, 2)`` in it (u right,
+    v down, 0-1 over the whole image)."""
+    rec.log(path, rr.Mesh3D(vertex_positions=vertices, triangle_indices=triangles, vertex_texcoords=texcoords,
+                            albedo_texture=texture), static=True)
+
+
+def error_image(rec: rr.RecordingStream, path: str, values: np.ndarray, name: str, unit: str = "m",
+                colormap: str = "Viridis", max_side: int = 1024) -> None:
+    """A per-pixel error map (non-negative; NaN where there is none) as a colour-mapped depth
+    image from 0 to a nice top (:func:`nice_ceiling`; hovering reads the value in ``unit``), with
+    a colour bar under it at ``<path>/legend``, three ticks and a title line (``name``, the RMS
+    and the largest value) under the bar; static. A map larger than ``max_side`` on its longer
+    side is thinned (the title's statistics are the full map's)."""
+    full = np.asarray(values, np.float32)
+    thin = stride(full, max_side)
+    shown = full[::thin, ::thin]
+    rows, cols = shown.shape
+    top = nice_ceiling(float(np.nanmax(full)))
+    rec.log(path, rr.DepthImage(shown, meter=1.0, colormap=colormap, depth_range=(0.0, top)), static=True)
+    gap, bar_h = max(1, rows // 30), max(4, rows // 10)
+    bar = np.repeat(((np.arange(cols) + 0.5) / cols * top).astype(np.float32)[None], bar_h, axis=0)
+    rec.log(f"{path}/legend", rr.Transform3D(translation=[0.0, rows + gap, 0.0]),
+            rr.DepthImage(bar, meter=1.0, colormap=colormap, depth_range=(0.0, top)), static=True)
+    at = np.array([0.2, 0.5, 0.8])          # three ticks: five overlap on a small map
+    rec.log(f"{path}/legend/ticks", rr.Points2D(np.stack([at * cols, np.full(len(at), bar_h + 0.05 * rows)], 1),
+                                                radii=[0.0], labels=[f"{t * top:.3g} {unit}" for t in at],
+                                                colors=[LABEL]), static=True)
+    rms, worst = float(np.sqrt(np.nanmean(np.square(full)))), float(np.nanmax(full))
+    # the title, and an unlabelled point under it: a view fits its points, not their labels
+    rec.log(f"{path}/legend/title", rr.Points2D([[cols / 2.0, bar_h + 0.14 * rows], [cols / 2.0, bar_h + 0.3 * rows]],
+                                                radii=[0.0], colors=[LABEL],
+                                                labels=[f"{name}: rmse {rms:.2f} {unit}, max {worst:.2f} {unit}", ""]),
+            static=True)
