@@ -13,7 +13,8 @@ import numpy as np
 import pytest
 from launcher import wb
 
-from workbench.recording import browser, draw, layout
+from workbench.recording import draw, layout
+from workbench.tools import browser
 
 WHY = browser.available()
 pytestmark = pytest.mark.skipif(WHY is not None and not os.environ.get("WORKBENCH_REQUIRE_BROWSER"),
@@ -55,7 +56,7 @@ def columns(img: np.ndarray, lo: float, hi: float) -> np.ndarray:
 
 
 def estimator_colours(path):
-    from workbench.recording import provenance
+    from workbench.tools import provenance
 
     return {n: tuple(e["color"]) for n, e in provenance.read(path).metrics["estimator_table"].items()}
 

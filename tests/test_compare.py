@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 from launcher import wb
 
-from workbench.recording import browser, provenance, readback
+from workbench.recording import readback
+from workbench.tools import browser, provenance
 
 
 @pytest.fixture(scope="module")

@@ -12,7 +12,8 @@ from launcher import wb
 
 from workbench import experiments
 from workbench.experiments import plugins
-from workbench.recording import browser, draw, layout
+from workbench.recording import draw, layout
+from workbench.tools import browser
 
 SPAN = (0.0, 100.0)
 

@@ -11,7 +11,8 @@ import rerun as rr
 import rerun.blueprint as rrb
 from launcher import wb
 
-from workbench.recording import provenance, readback, stream
+from workbench.recording import readback, stream
+from workbench.tools import provenance
 
 CASES = {
     "sea": ("--runs", "2", "--duration", "10"),

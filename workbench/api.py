@@ -28,7 +28,7 @@ from typing import Any
 
 from workbench import montecarlo
 from workbench.errors import WorkbenchError
-from workbench.experiments import get, limits
+from workbench.experiments import get, limits, metric
 from workbench.experiments.contract import Experiment, without
 
 
@@ -93,6 +93,7 @@ def run(experiment: str | Experiment, scenario: str | None = None, *, config: An
         cfg = exp.configure(scenario, **overrides)
     chosen = exp.select(estimators if estimators is not None else (cfg.estimators or None))
     cfg.estimators = tuple(e.spec for e in chosen)
+    cfg.add_metrics = tuple(metric.spec(m, exp.name) for m in cfg.add_metrics)
     exp.validate(cfg)
     limits.check_jobs(jobs)
     out_path = stream.check_output(Path(out), force) if out is not None else None
@@ -152,19 +153,23 @@ def run(experiment: str | Experiment, scenario: str | None = None, *, config: An
     return Result(exp.name, cfg, stats, table, first, summaries, out_path, metrics_path, failures, lines, live)
 
 
-def measure(model: str | Path, points: Iterable[str] = (), lines: Iterable[str] = (),
-            polygons: Iterable[str] = ()) -> list:
-    """Measure in a terrain run's halftone model folder (``workbench measure``): ``points``
-    ``"u,v"``, ``lines`` ``"u1,v1:u2,v2"``, ``polygons`` ``"u1,v1:u2,v2:u3,v3..."`` (image II's
-    pixels); each a :class:`~workbench.experiments.terrain.measure.Measurement` with values and
-    standard deviations. Bad input raises :class:`WorkbenchError` (one line)."""
-    from workbench.experiments.terrain import measure as ms
-    from workbench.experiments.terrain import model as tm
+def command(name: str) -> Callable:
+    """A command an experiment declares (terrain's ``measure``), as its Python function: found in
+    the registry, the way the command line finds it."""
+    from workbench import experiments, loading
 
-    points, lines, polygons = list(points), list(lines), list(polygons)
-    if not (points or lines or polygons):
-        raise WorkbenchError("nothing to measure: give --point u,v, --line u1,v1:u2,v2 or --polygon u1,v1:u2,v2:u3,v3")
-    return ms.measure(tm.load(model), points, lines, polygons)
+    for exp in experiments.all_experiments():
+        for cmd in exp.commands:
+            if cmd.name == name and cmd.api is not None:
+                return loading.load(cmd.api, "command")
+    raise AttributeError(f"module 'workbench.api' has no attribute {name!r}")
+
+
+def __getattr__(name: str) -> Callable:
+    """``api.measure`` and any other command an experiment declares (:func:`command`)."""
+    if name.startswith("_"):
+        raise AttributeError(name)
+    return command(name)
 
 
 def summarise_run(experiment: str, cfg: Any, estimators: list, run: int) -> Any:

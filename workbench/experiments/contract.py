@@ -47,7 +47,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from workbench.errors import WorkbenchError
-from workbench.experiments import metric
+from workbench.experiments import figures, metric
 from workbench.experiments.estimator import Estimator, RunContext, estimate_all, resolve
 from workbench.experiments.settings import Option, Scenario, config_json
 
@@ -288,7 +288,7 @@ class Experiment:
 
     def run_metrics(self, summary: RunSummary, cfg: Any) -> dict[str, dict[str, float]]:
         """One run's figures per estimator, estimator -> metric -> value (a sweep's rows)."""
-        return metric.run_rows(self.metrics(cfg), summary.metrics, self.settle(cfg))
+        return figures.run_rows(self.metrics(cfg), summary.metrics, self.settle(cfg))
 
     def metric_units(self, cfg: Any = None) -> dict[str, str]:
         return {m.name: m.unit for m in self.metrics(cfg)}
@@ -302,18 +302,18 @@ class Experiment:
         stats: dict = {"experiment": self.name, "scenario": cfg.scenario, "seed": cfg.seed, "runs": len(summaries),
                        "label": label, "config": config_json(cfg), "estimators": {}}
         metrics = self.metrics(cfg)
-        figures = metric.statistics(metrics, [s.metrics for s in summaries], self.settle(cfg))
-        metric.merge(stats, metrics, figures, len(summaries))
+        found = figures.statistics(metrics, [s.metrics for s in summaries], self.settle(cfg))
+        figures.merge(stats, metrics, found, len(summaries))
         failed = {k: f"{why} (run {s.run})" for s in summaries for k, why in s.metric_failures.items()}
         if failed:
             stats["metric_failures"] = failed
         self.role("evaluate").statistics(cfg, summaries, stats)
-        return metric.add_renamed(stats, self.renamed)
+        return figures.add_renamed(stats, self.renamed)
 
     def table(self, stats: dict) -> str:
         """The results table, markdown (``report.table``), of metrics written by this version or
         the one before (their renamed keys read as the new ones)."""
-        return self.role("report").table(metric.upgrade(_copy(stats), self.renamed))
+        return self.role("report").table(figures.upgrade(_copy(stats), self.renamed))
 
     # --- record
     def blueprint(self, first: Any, summaries: list[Any]) -> Any:

@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 
 from workbench.estimation.metrics import chi2_band
-from workbench.experiments import metric
+from workbench.experiments import figures, metric
 from workbench.recording.layout import Curves
 
 BAND = {"band_lo": "95 % low", "band_hi": "95 % high"}
@@ -24,7 +24,7 @@ BAND = {"band_lo": "95 % low", "band_hi": "95 % high"}
 def over_runs(m: metric.Metric, summaries: Sequence[Any], names: Iterable[str] | None = None) -> Curves | None:
     """The metric at each step over the runs, per estimator (``names``: those only), with its
     band for that many runs; None where it is no time series."""
-    t, series = metric.curves(m, [s.metrics for s in summaries])
+    t, series = figures.curves(m, [s.metrics for s in summaries])
     if names is not None:
         series = {n: v for n, v in series.items() if n in set(names)}
     if not series:

@@ -13,9 +13,9 @@ class StoredBlueprint:
     ``blueprint=`` parameters take: they ask for ``to_blueprint()`` and ``_log_to_stream(stream)``."""
 
     def __init__(self, path: Path) -> None:
-        from workbench.recording import browser
+        from workbench.recording.blueprints import blueprint_chunks
 
-        self.chunks = browser.blueprint_chunks(Path(path))[1]
+        self.chunks = blueprint_chunks(Path(path))[1]
 
     def to_blueprint(self) -> StoredBlueprint:
         return self

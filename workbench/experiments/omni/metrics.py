@@ -188,25 +188,25 @@ def seconds(data: OmniData, est: SlamEstimate) -> Values:
 
 
 METRICS: tuple[Metric, ...] = (
-    Metric("position_rmse", position_error, "m", "position error, RMS over the steps and runs", label="pos rmse"),
-    Metric("position_max", position_error, "m", "largest position error", reduce="max", label="pos max"),
-    Metric("heading_rmse", heading_error, "deg", "heading error, RMS", label="head rmse"),
-    Metric("heading_max", heading_error, "deg", "largest heading error", reduce="max", label="head max"),
-    Metric("map_rmse", map_error, "m", "the final map's landmark errors, RMS", label="map rmse"),
-    Metric("final_position", final_position, "m", "the last pose's position error, RMS over runs", label="final"),
+    Metric("position_rmse", position_error, "m", "position error, RMS over the steps and runs", label="pos rmse m"),
+    Metric("position_max", position_error, "m", "largest position error", reduce="max", label="pos max m"),
+    Metric("heading_rmse", heading_error, "deg", "heading error, RMS", label="head rmse deg"),
+    Metric("heading_max", heading_error, "deg", "largest heading error", reduce="max", label="head max deg"),
+    Metric("map_rmse", map_error, "m", "the final map's landmark errors, RMS", label="map rmse m"),
+    Metric("final_position", final_position, "m", "the last pose's position error, RMS over runs", label="final m"),
     Metric("sigma_position_max", sigma_position, "m", "largest own position sigma (its x, y in quadrature)",
-           reduce="max", label="sigma pos max"),
+           reduce="max", label="sigma pos max m"),
     Metric("sigma_x_max", sigma_x, "m", "largest own sigma of x", reduce="max"),
     Metric("sigma_y_max", sigma_y, "m", "largest own sigma of y", reduce="max"),
     Metric("sigma_heading_max", sigma_heading, "deg", "largest own heading sigma", reduce="max",
-           label="sigma head max"),
+           label="sigma head max deg"),
     Metric("anees", nees, "", "the pose's NEES (3 dof), mean over the steps and runs", reduce="mean", dimension=3,
            label="ANEES"),
     Metric("landmarks", landmarks, "", "landmarks in the final map, mean over runs", reduce="sum", across="mean",
            fmt=".1f"),
     Metric("init_seconds_mean", init_delay, "s", "mean delay from a landmark's first sighting to its initialisation",
            reduce="mean"),
-    Metric("init_seconds_median", init_delay, "s", "median initialisation delay", reduce="median", label="init",
+    Metric("init_seconds_median", init_delay, "s", "median initialisation delay", reduce="median", label="init s",
            fmt=".1f"),
     Metric("init_seconds_max", init_delay, "s", "longest initialisation delay", reduce="max"),
     Metric("coverage", coverage, "", "share of the grid's steps with an estimate", reduce="mean", window=False),
@@ -229,7 +229,7 @@ METRICS: tuple[Metric, ...] = (
            efficiency=("position_rmse", "position_bound")),
     Metric("heading_efficiency", None, "", "heading RMSE over its bound", efficiency=("heading_rmse", "heading_bound")),
     Metric("map_efficiency", None, "", "map RMSE over its bound", efficiency=("map_rmse", "map_bound")),
-    Metric("seconds", seconds, "s", "seconds a run, mean over runs", reduce="mean", label="time"),
+    Metric("seconds", seconds, "s", "seconds a run, mean over runs", reduce="mean", label="s/run"),
 )
 """Every omni metric; the results table shows :data:`TABLE`."""
 

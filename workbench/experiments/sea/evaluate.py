@@ -15,7 +15,7 @@ import numpy as np
 
 from workbench.estimation import metrics
 from workbench.estimation.angles import to_arcmin, wrap
-from workbench.experiments import metric
+from workbench.experiments import figures, metric
 from workbench.experiments.contract import RunSummary as Summary
 from workbench.experiments.sea import bounds as sea_bounds
 from workbench.experiments.sea.config import ALL_SHIPS, SeaConfig
@@ -162,9 +162,9 @@ def statistics(cfg: SeaConfig, runs: list[RunSummary], stats: dict) -> None:
     if cfg.scenario == "ais" and cfg.mmsi == ALL_SHIPS:
         stats.update(ship_statistics(cfg, runs))
     if runs[0].simulated is not None:
-        figures = metric.statistics(_metrics(cfg), [r.simulated for r in runs])
-        stats["simulated"] = metric.add_renamed({"note": "the same runs' estimators on the simulated angles",
-                                                 "estimators": figures}, RENAMED)
+        found = figures.statistics(_metrics(cfg), [r.simulated for r in runs])
+        stats["simulated"] = figures.add_renamed({"note": "the same runs' estimators on the simulated angles",
+                                                  "estimators": found}, RENAMED)
 
 
 def _metrics(cfg: SeaConfig) -> list[metric.Metric]:
@@ -193,11 +193,11 @@ def ship_statistics(cfg: SeaConfig, runs: list[RunSummary]) -> dict:
     keep = ("position_rmse", *(f"{g}_{q}" for g in ("rmse", "bias") for q in QUANTITIES))
     ships = {}
     for mmsi, rs in groups.items():
-        figures = metric.statistics(_metrics(cfg), [r.metrics for r in rs])
-        entries = {name: {k: e[k] for k in keep if k in e} for name, e in figures.items()}
+        found = figures.statistics(_metrics(cfg), [r.metrics for r in rs])
+        entries = {name: {k: e[k] for k in keep if k in e} for name, e in found.items()}
         renamed = {old: new for old, new in RENAMED.items() if old.split(".")[0] in ("rmse", "bias")}
         ships[str(mmsi)] = {"label": rs[0].label, "runs": len(rs),
-                            "estimators": metric.add_renamed({"estimators": entries}, renamed)["estimators"]}
+                            "estimators": figures.add_renamed({"estimators": entries}, renamed)["estimators"]}
     over: dict = {}
     for name in runs[0].errors:
         over[name] = {}

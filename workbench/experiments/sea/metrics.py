@@ -20,6 +20,7 @@ from workbench.experiments.sea.scenario import SeaData
 
 QUANTITIES = ("x", "y", "alpha", "beta", "range")
 UNITS = {"x": "m", "y": "m", "alpha": "arcmin", "beta": "arcmin", "range": "m", "position": "m"}
+SHORT = {**UNITS, "alpha": "'", "beta": "'"}
 SCALE = np.array([1.0, 1.0, to_arcmin(1.0), to_arcmin(1.0), 1.0])
 
 
@@ -108,13 +109,13 @@ def seconds(data: SeaData, est: Estimate) -> Values:
 
 METRICS: tuple[Metric, ...] = (
     Metric("position_rmse", position_error, "m", "position error, RMS over every step of every run",
-           label="pos rmse"),
+           label="pos rmse m"),
     *(Metric(f"rmse_{q}", _quantity(i, False), UNITS[q], f"each run's RMS error of {q}, mean over runs",
-             across="mean", label=f"rmse {q}", fmt=".3g") for i, q in enumerate(QUANTITIES)),
+             across="mean", label=f"rmse {q} {SHORT[q]}", fmt=".3g") for i, q in enumerate(QUANTITIES)),
     *(Metric(f"bias_{q}", _quantity(i, True), UNITS[q], f"each run's mean error of {q}, mean over runs",
-             reduce="mean", across="mean", label=f"bias {q}", fmt=".3g") for i, q in enumerate(QUANTITIES)),
+             reduce="mean", across="mean", label=f"bias {q} {SHORT[q]}", fmt=".3g") for i, q in enumerate(QUANTITIES)),
     *(Metric(f"max_{q}", _quantity(i, False), UNITS[q], f"each run's largest error of {q}, mean over runs",
-             reduce="max", across="mean", label=f"max {q}") for i, q in enumerate(QUANTITIES)),
+             reduce="max", across="mean", label=f"max {q} {SHORT[q]}") for i, q in enumerate(QUANTITIES)),
     Metric("anees", nees, "", "the NEES of (x, y, vx, vy), mean over the steps and runs", reduce="mean",
            dimension=4, label="ANEES"),
     Metric("coverage", coverage, "", "share of the steps with an estimate", reduce="mean"),
@@ -123,7 +124,7 @@ METRICS: tuple[Metric, ...] = (
     *(Metric(f"{q}_efficiency", None, "", f"{q}'s RMSE over its bound",
              efficiency=("position_rmse" if q == "position" else f"rmse_{q}", f"{q}_bound"))
       for q in ("x", "y", "position", "range", "alpha", "beta")),
-    Metric("seconds", seconds, "s", "seconds a run, mean over runs", reduce="mean", label="time", fmt=".3f"),
+    Metric("seconds", seconds, "s", "seconds a run, mean over runs", reduce="mean", label="s/run", fmt=".3f"),
 )
 """Every sea metric; the results table shows :data:`TABLE` (each with its spread over runs)."""
 

@@ -8,7 +8,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from workbench.errors import require
-from workbench.experiments.contract import Demo, Experiment, Preset
+from workbench.experiments.contract import Command, Demo, Experiment, Preset
 from workbench.experiments.terrain import grid
 from workbench.experiments.terrain.config import EXTRAS, OPTIONS, SCENARIOS, TerrainConfig
 from workbench.experiments.terrain.estimate import Estimate
@@ -39,6 +39,8 @@ class Terrain(Experiment):
                overrides={"hypotheses": "sample"}, estimators="navigation,recurrent-search,recurrent-search-refined",
                report="workbench.experiments.terrain.grid:from_sweep"),
     )
+    commands = (Command("measure", "workbench.experiments.terrain.commands:measure_command",
+                        "workbench.experiments.terrain.commands:measure"),)
     headline = ("dr_fraction", "dx_fraction", "position_error")
     compared = ()
     paper_notes = {"dr_fraction": "paper (Fig. 3): mean radial error 40-60 % of the maximum after processing; "

@@ -131,11 +131,11 @@ def seconds(data: TerrainData, est: Estimate) -> Values:
 
 METRICS: tuple[Metric, ...] = (
     Metric("position_error", position_error, "m", "image II's position error (3D norm), mean over runs",
-           reduce="mean", across="mean", label="position error"),
+           reduce="mean", across="mean", label="position error m"),
     Metric("attitude_error", attitude_error, "rad", "image II's attitude error (norm of the three angles), mean "
-           "over runs", reduce="mean", across="mean", label="attitude error", fmt=".5f"),
+           "over runs", reduce="mean", across="mean", label="attitude error rad", fmt=".5f"),
     Metric("ground_rmse", ground_rmse, "m", "the halftone model's horizontal ground error over image II, RMS",
-           label="ground rmse"),
+           label="ground rmse m"),
     *(Metric(f"rmse_{q}", _component(i), "m", f"image II's {q} error, RMS over runs") for i, q in enumerate("xyh")),
     *(Metric(f"d{q}", _component(i), "m", f"image II's {q} error (truth - estimate), mean over runs",
              reduce="mean", across="mean") for i, q in enumerate("xyh")),
@@ -156,7 +156,7 @@ METRICS: tuple[Metric, ...] = (
            efficiency=("position_error", "position_bound")),
     Metric("attitude_efficiency", None, "", "attitude error (RMS) over its bound",
            efficiency=("attitude_error", "attitude_bound", 1000.0)),
-    Metric("seconds", seconds, "s", "seconds a run, mean over runs", reduce="mean", label="time"),
+    Metric("seconds", seconds, "s", "seconds a run, mean over runs", reduce="mean", label="s/run"),
 )
 """Every terrain metric; the results table shows :data:`TABLE`."""
 

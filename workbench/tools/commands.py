@@ -1,11 +1,17 @@
-"""``workbench info`` and ``workbench replay``: the command line's thin layer over
-:mod:`.provenance` (registered by :mod:`workbench.cli`)."""
+"""``workbench info``, ``replay``, ``screenshot``, ``compare`` and ``view``: the command line's thin
+layer over :mod:`.provenance`, :mod:`.browser` and :mod:`.compare` (registered by :mod:`workbench.cli`)."""
 
 from __future__ import annotations
 
+import os
+import shutil
+import subprocess
+import sys
 from pathlib import Path
 
 import typer
+
+from workbench.errors import WorkbenchError
 
 DIFFERS = 1  # replay: the numbers do not reproduce
 
@@ -13,7 +19,7 @@ DIFFERS = 1  # replay: the numbers do not reproduce
 def info(file: Path = typer.Argument(..., help="A .rrd recording.")) -> None:
     """What made a recording: its command, config, version, commit, seed and date, its
     estimators and its results table."""
-    from workbench.recording import provenance
+    from workbench.tools import provenance
 
     stored = provenance.read(file) if not _is_comparison(file) else None
     typer.echo(provenance.describe(stored) if stored else provenance.describe_comparison(file, _is_comparison(file)))
@@ -21,7 +27,7 @@ def info(file: Path = typer.Argument(..., help="A .rrd recording.")) -> None:
 
 def _is_comparison(file: Path) -> list[dict] | None:
     """The inputs of a ``compare`` recording (None for anything else, which ``read`` then judges)."""
-    from workbench.recording import provenance
+    from workbench.tools import provenance
 
     try:
         return provenance.comparison(file) if file.is_file() and file.suffix == ".rrd" else None
@@ -33,7 +39,8 @@ def replay(file: Path = typer.Argument(..., help="A .rrd recording."),
            jobs: int = typer.Option(None, help="Processes for the Monte Carlo runs [up to 2].")) -> None:
     """Run a recording's experiment again from its own stored config and say whether every
     number reproduces (to 1e-9 relative, timings aside); exit code 1 if not."""
-    from workbench.recording import provenance, stream
+    from workbench.recording import stream
+    from workbench.tools import provenance
 
     stored = provenance.read(file)
     cfg = provenance.config_of(stored)
@@ -64,7 +71,7 @@ def screenshot(files: list[Path] = typer.Argument(..., help="One or more .rrd re
     import tempfile
 
     from workbench.errors import WorkbenchError
-    from workbench.recording import browser, provenance
+    from workbench.tools import browser, provenance
 
     if views not in ("all", "default"):
         raise WorkbenchError(f"--views must be all or default, not {views!r}")
@@ -94,7 +101,7 @@ def compare(files: list[Path] = typer.Argument(..., help="Two or more .rrd recor
     curves and maps overlaid, and each later run's headline error curves minus the first's."""
     from workbench.errors import WorkbenchError
     from workbench.loading import split_list
-    from workbench.recording import compare as comparison
+    from workbench.tools import compare as comparison
 
     pairs = []
     for p in pair or []:
@@ -106,3 +113,45 @@ def compare(files: list[Path] = typer.Argument(..., help="Two or more .rrd recor
     typer.echo(f"comparison: {out}")
     for r in runs:
         typer.echo(f"  {r.label:24s} {r.path}  (under /{r.slug})")
+
+
+def view(
+    file: Path = typer.Argument(..., help="A .rrd recording."),
+    web: bool = typer.Option(False, help="Serve the web viewer even where a display exists."),
+    port: int = typer.Option(9090, help="Web viewer port (1024-65535)."),
+    host: str = typer.Option("127.0.0.1", help="Address the web viewer binds to (0.0.0.0: every interface)."),
+) -> None:
+    """Open a recording: the native viewer where a display exists, else the web viewer (on
+    localhost unless --host says otherwise). Exits with the viewer's exit code."""
+    from workbench.recording import readback
+
+    readback.check_recording(file)
+    exe = shutil.which("rerun") or str(Path(sys.executable).with_name("rerun"))
+    has_display = bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")
+                       or sys.platform in ("darwin", "win32"))
+    if has_display and not web:
+        raise typer.Exit(subprocess.run([exe, str(file)], check=False).returncode)
+    if not 1024 <= port <= 65535:
+        raise WorkbenchError(f"--port must be in 1024..65535, got {port}")
+    _port_free(host, port)
+    typer.echo(f"serving the web viewer at http://{'localhost' if host == '127.0.0.1' else host}:{port} "
+               "(Ctrl-C to stop)")
+    code = subprocess.run([exe, "--web-viewer", "--web-viewer-port", str(port), "--bind", host, str(file)],
+                          check=False).returncode
+    raise typer.Exit(code)
+
+
+def _port_free(host: str, port: int) -> None:
+    """A one-line error unless ``host:port`` can be bound now (busy, or not an address here)."""
+    import socket
+
+    try:
+        infos = socket.getaddrinfo(host, port, type=socket.SOCK_STREAM)
+    except socket.gaierror as exc:
+        raise WorkbenchError(f"--host {host!r} is not an address: {exc.strerror}") from None
+    family, _, _, _, address = infos[0]
+    with socket.socket(family, socket.SOCK_STREAM) as s:
+        try:
+            s.bind(address)
+        except OSError as exc:
+            raise WorkbenchError(f"cannot serve on {host}:{port}: {exc.strerror} (busy? choose --port)") from None

@@ -25,7 +25,8 @@ import numpy as np
 import pyarrow as pa
 
 from workbench.errors import WorkbenchError
-from workbench.recording import browser, provenance, readback
+from workbench.recording import readback
+from workbench.tools import browser, provenance
 
 LIGHTER = 0.45
 """How far toward white the colours of every run after the first are taken."""

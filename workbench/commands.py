@@ -1,0 +1,136 @@
+"""The experiment commands: one per registered experiment, built from its contract (its
+scenarios, options, extras and estimator table) by one code path, and what every one of them
+does (:func:`execute`: the API's run, the table and the outputs printed). Nothing here knows an
+experiment's settings."""
+
+from __future__ import annotations
+
+import inspect
+import sys
+import warnings
+from collections.abc import Callable
+from pathlib import Path
+
+import typer
+
+from workbench.loading import split_list
+from workbench.paths import PROJECT_ROOT
+
+RECORDINGS = PROJECT_ROOT / "recordings"
+FAILED = 3  # the run finished, but an estimator failed (its results are left out)
+
+
+def _progress():
+    """A progress bar (rich, which typer brings) that shows itself only on a terminal."""
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+
+    bar = Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
+                   transient=True, disable=not sys.stderr.isatty())
+    return bar, bar.add_task("runs", total=None)
+
+
+def execute(exp, scenario: str | None, out: Path | None, force: bool, metrics: Path | None, spawn: bool = False,
+            serve: bool = False, jobs: int | None = None, estimators: str | None = None, quiet: bool = False,
+            extras: dict | None = None, connect: str | None = None, **overrides):
+    """What every experiment command does, through the API; prints the table and the outputs.
+    Exits with :data:`FAILED` (after writing everything) if an estimator failed."""
+    from workbench import api
+
+    bar, task = _progress()
+    from workbench.errors import DataWarning
+    from workbench.recording.stream import VIEWER_PORT, LiveWarning
+
+    with bar, warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("ignore", RuntimeWarning)  # the failures are printed below
+        warnings.simplefilter("always", LiveWarning)
+        warnings.simplefilter("always", DataWarning)
+        res = api.run(exp, scenario, estimators=estimators, out=out or RECORDINGS / f"{exp.name}.rrd",
+                      metrics=metrics, force=force, jobs=jobs, spawn=spawn, serve=serve, connect=connect,
+                      extras=extras, progress=lambda done, total: bar.update(task, completed=done, total=total),
+                      **overrides)
+    said = dict.fromkeys(str(w.message) for w in caught if issubclass(w.category, (LiveWarning, DataWarning)))
+    for line in said:  # a real log is read once per run: each repair said once
+        typer.echo(f"warning: {line}", err=True)
+    if not quiet:
+        wall = res.metrics.get("wall_seconds")
+        lines = ([f"recording: {res.recording}"] if res.recording else []) + (
+            [f"metrics:   {res.metrics_path}"] if res.metrics_path else []) + res.lines + (
+            [f"{len(res.summaries) or res.config.runs} run(s) in {wall:.1f} s"] if wall is not None else [])
+        typer.echo(res.table + "\n\n" + "\n".join(lines))
+    for name, why in res.failures.items():
+        typer.echo(f"error: estimator {name!r} failed: {why}", err=True)
+    if serve and res.live is not None:
+        typer.echo(f"serving the stream at rerun+http://127.0.0.1:{VIEWER_PORT}/proxy "
+                   f"(rerun --connect rerun+http://127.0.0.1:{VIEWER_PORT}/proxy); Ctrl-C to stop", err=True)
+        _until_interrupted()
+    if res.failures:
+        raise typer.Exit(FAILED)
+    return res
+
+
+def _until_interrupted() -> None:
+    import time
+
+    try:
+        while True:
+            time.sleep(3600)
+    except KeyboardInterrupt:
+        typer.echo("stopped serving", err=True)
+
+
+def _option(opt, exp) -> inspect.Parameter:
+    help_text = _escape(opt.described(exp.config_type, exp.scenarios))
+    kind = str if opt.type is Path else opt.type  # a path as text: '' is an error, not the current folder
+    return inspect.Parameter(opt.field, inspect.Parameter.KEYWORD_ONLY, annotation=kind | None,
+                             default=typer.Option(None, *opt.flags, help=help_text))
+
+
+def _escape(text: str) -> str:
+    """Brackets as text, not rich markup (which would swallow ``[recordings/sea.rrd]``)."""
+    return text.replace("[", "\\[")
+
+
+def _shared(exp) -> list[inspect.Parameter]:
+    """The options every experiment command has, declared once."""
+    builtin = ", ".join(exp.estimators)
+    rows = [("scenario", str, f"{' | '.join(exp.scenarios)} [{next(iter(exp.scenarios))}]"),
+            ("seed", int, "Seed of every random draw [0]."),
+            ("runs", int, "Monte Carlo runs (run 0 is recorded in full) [1]."),
+            ("out", Path, f"Recording path [recordings/{exp.name}.rrd]."),
+            ("force", bool, "Overwrite existing outputs."),
+            ("metrics", Path, "Write the metrics JSON here."),
+            ("spawn", bool, "Also stream live to a spawned native viewer (run 0 as soon as it is done)."),
+            ("serve", bool, "Also serve the stream over gRPC, live, until Ctrl-C."),
+            ("connect", str, "Also stream live to a running viewer at this URL (rerun+http://HOST:PORT/proxy)."),
+            ("jobs", int, "Processes for Monte Carlo runs [up to 2]."),
+            ("estimators", str, f"Comma-separated: {builtin} (the defaults), installed plugins, your own as "
+                                "module:function or file.py:function; +name adds to the defaults."),
+            ("add_metrics", str, "Comma-separated metrics of your own (module:function or file.py:function), "
+                                 "beside the experiment's and the installed ones.")]
+    return [inspect.Parameter(n, inspect.Parameter.KEYWORD_ONLY, annotation=t if t is bool else t | None,
+                              default=typer.Option(False if t is bool else None, help=_escape(h))) for n, t, h in rows]
+
+
+def command(exp, friendly: Callable[[Callable], Callable]) -> Callable:
+    """The experiment's command: its options as typer parameters, bad input made one line by ``friendly``."""
+
+    def run(**given):
+        shared = {k: given.pop(k) for k in ("scenario", "out", "force", "metrics", "spawn", "serve", "jobs",
+                                            "estimators", "connect")}
+        extras = {opt.field: opt.value(given.pop(opt.field)) for opt in exp.extras}
+        added = given.pop("add_metrics")
+        overrides = {"seed": given.pop("seed"), "runs": given.pop("runs"),
+                     "add_metrics": split_list(added) if added is not None else None}
+        for opt in exp.options:
+            value = opt.value(given.pop(opt.field))
+            overrides.update({f: value for f in opt.fields if value is not None})
+        execute(exp, extras=extras, **shared, **overrides)
+
+    params = _shared(exp) + [_option(o, exp) for o in exp.options + exp.extras]
+    wrapped = friendly(run)
+    wrapped.__signature__ = inspect.Signature(params)
+    wrapped.__annotations__ = {p.name: p.annotation for p in params}
+    wrapped.__doc__ = exp.description[0].upper() + exp.description[1:] + "."
+    return wrapped
+
+
