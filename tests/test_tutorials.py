@@ -2,7 +2,8 @@
 
 * ``sh`` blocks run line by line; ``sh real-data`` blocks need the real data
   (``WORKBENCH_DATA`` or ``../shared/data``) and are skipped, with the reason, where it is absent;
-* ``python file=NAME`` blocks are written to ``NAME`` (a file the reader saves);
+* ``python file=NAME`` (and ``toml file=NAME``) blocks are written to ``NAME`` (a file the reader
+  saves; ``pkg/mod.py`` in a package folder);
 * ``python run`` blocks run as a script (what the reader types into Python or a notebook).
 """
 
@@ -17,7 +18,7 @@ import pytest
 from workbench.paths import data_root
 
 TUTORIALS = sorted((Path(__file__).resolve().parents[1] / "tutorials").glob("*.md"))
-BLOCK = re.compile(r"```(sh real-data|sh|python file=\S+|python run)\n(.*?)```", flags=re.S)
+BLOCK = re.compile(r"```(sh real-data|sh|(?:python|toml) file=\S+|python run)\n(.*?)```", flags=re.S)
 
 
 @pytest.mark.parametrize("path", TUTORIALS, ids=lambda p: p.stem)
@@ -33,8 +34,10 @@ def test_tutorial_runs(path, tmp_path):
         if kind == "sh real-data" and not data_root().is_dir():
             skipped.append(block.strip())
             continue
-        if kind.startswith("python file="):
-            (tmp_path / kind.split("=", 1)[1]).write_text(block)
+        if " file=" in kind:
+            target = tmp_path / kind.split("=", 1)[1]
+            target.parent.mkdir(parents=True, exist_ok=True)  # a file of a package the reader writes
+            target.write_text(block)
             continue
         if kind == "python run":
             r = subprocess.run([sys.executable, "-c", block], cwd=tmp_path, env=env, capture_output=True,

@@ -19,6 +19,7 @@ for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
 import sys
 from collections.abc import Callable
 from functools import wraps
+from pathlib import Path
 
 import typer
 
@@ -128,17 +129,23 @@ def list_experiments() -> None:
 @app.command()
 @friendly
 def demo(force: bool = typer.Option(False, help="Overwrite existing recordings."),
-         runs: int = typer.Option(20, help="Monte Carlo runs per experiment (some steps take fewer).")) -> None:
+         runs: int = typer.Option(20, help="Monte Carlo runs per experiment (some steps take fewer)."),
+         only: str = typer.Option(None, help="Comma-separated experiments to run [every one, installed ones too]."),
+         out: str = typer.Option(None, help="The folder for the recordings and metrics [recordings/].")) -> None:
     """Run every experiment's demo steps on their defaults; recordings go to recordings/.
     A step is skipped only where its real data is absent; any other error fails the demo."""
     written = []
-    for exp in experiments.all_experiments():
+    folder = RECORDINGS if out is None else Path(out)
+    if not str(out if out is not None else folder).strip():
+        raise WorkbenchError("--out needs a folder name, got ''")
+    chosen = experiments.all_experiments() if only is None else \
+        [experiments.get(n) for n in loading.split_list(only) or [""]]
+    for exp in chosen:
         for step in exp.demo:
             n = min(runs, step.max_runs or runs)
             try:
-                res = execute(exp, step.scenario, RECORDINGS / f"{step.name}.rrd", force,
-                              RECORDINGS / f"{step.name}.json", estimators=step.estimators, quiet=True, runs=n,
-                              **step.overrides)
+                res = execute(exp, step.scenario, folder / f"{step.name}.rrd", force, folder / f"{step.name}.json",
+                              estimators=step.estimators, quiet=True, runs=n, **step.overrides)
             except DataNotFound as exc:
                 if not exp.scenarios[step.scenario].real_data:
                     raise
@@ -147,6 +154,6 @@ def demo(force: bool = typer.Option(False, help="Overwrite existing recordings."
             written.append(res.recording)
             typer.echo(f"{step.name:16s} -> {res.recording}  ({res.metrics['wall_seconds']:.1f} s, {n} run(s))")
     if written:
-        typer.echo(f"\nrecordings in {RECORDINGS}; open one with: workbench view {written[0]}")
+        typer.echo(f"\nrecordings in {folder}; open one with: workbench view {written[0]}")
 
 

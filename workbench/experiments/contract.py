@@ -47,9 +47,12 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from workbench.errors import WorkbenchError
-from workbench.experiments import figures, metric
+from workbench.experiments import figures, markdown, metric
 from workbench.experiments.estimator import Estimator, RunContext, estimate_all, resolve
 from workbench.experiments.settings import Option, Scenario, config_json
+
+GENERIC = ("evaluate", "record")
+"""Roles an experiment may leave out: :mod:`.generic` stands in (``report`` too, by :meth:`Experiment.table`)."""
 
 
 @dataclass(frozen=True)
@@ -160,9 +163,15 @@ class Experiment:
 
     def role(self, name: str) -> Any:
         """The experiment package's module for a role, imported when first needed: the methods
-        below call them by these names, so an experiment's ``experiment.py`` only declares."""
+        below call them by these names, so an experiment's ``experiment.py`` only declares. A
+        package without its own ``evaluate`` or ``record`` gets :mod:`.generic`'s."""
         package = type(self).__module__.rpartition(".")[0]
-        return importlib.import_module(f"{package}.{name}")
+        try:
+            return importlib.import_module(f"{package}.{name}")
+        except ModuleNotFoundError as exc:
+            if exc.name != f"{package}.{name}" or name not in GENERIC:
+                raise
+        return importlib.import_module("workbench.experiments.generic")
 
     def _optional(self, role: str, name: str, default: Any = None) -> Any:
         try:
@@ -311,9 +320,18 @@ class Experiment:
         return figures.add_renamed(stats, self.renamed)
 
     def table(self, stats: dict) -> str:
-        """The results table, markdown (``report.table``), of metrics written by this version or
-        the one before (their renamed keys read as the new ones)."""
-        return self.role("report").table(figures.upgrade(_copy(stats), self.renamed))
+        """The results table, markdown (``report.table``; without a ``report`` module the metrics'
+        table, ``metrics.TABLE`` its columns, and the bounds', ``metrics.BOUNDS``), of metrics
+        written by this version or the one before (their renamed keys read as the new ones)."""
+        stats = figures.upgrade(_copy(stats), self.renamed)
+        own = self._optional("report", "table")
+        if own is not None:
+            return own(stats)
+        from types import SimpleNamespace
+
+        cfg = SimpleNamespace(add_metrics=tuple(stats.get("config", {}).get("add_metrics", ()) or ()))
+        return markdown.default_table(stats, self.metrics(cfg), tuple(self._optional("metrics", "TABLE", ())),
+                             tuple(self._optional("metrics", "BOUNDS", ())))
 
     # --- record
     def blueprint(self, first: Any, summaries: list[Any]) -> Any:

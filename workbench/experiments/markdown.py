@@ -72,7 +72,7 @@ def bounds_table(stats: Mapping, quantities: Sequence[tuple[str, str, str, str]]
            "the smoothing bound", ""]
     body, below = [], []
     for name, e in rows:
-        cells = [name, e.get("bound_kind", "")]
+        cells = [name, e.get("bound_kind") or _held_to(stats, name)]
         for q, _, b, f in quantities:
             cells += [f"{e[b]:.3g}" if e.get(b) is not None else "", _efficiency(e, f)]
             if _below(e, f):
@@ -84,6 +84,16 @@ def bounds_table(stats: Mapping, quantities: Sequence[tuple[str, str, str, str]]
                 + ". No estimator can be on these data: it knows more than them (the truth?) or the bound's "
                   "model is not the data's; check it."]
     return out + [""]
+
+
+def _held_to(stats: Mapping, name: str) -> str:
+    """The bound an estimator is held to by its table row (an experiment may say it otherwise)."""
+    row = stats.get("estimator_table", {}).get(name)
+    if row is None:
+        return ""
+    if row.get("lag_seconds") is not None:
+        return f"fixed-lag {row['lag_seconds']:g} s"
+    return "filtering" if row.get("causal") else "smoothing"
 
 
 def _below(e: Mapping, key: str) -> bool:
@@ -98,3 +108,19 @@ def _efficiency(e: Mapping, key: str) -> str:
     if eff is None or not np.isfinite(eff):
         return ""
     return f"{eff:.2f}" + (f" +- {se:.2f}" if se is not None else "") + (" (below!)" if _below(e, key) else "")
+
+
+def default_table(stats: Mapping, metrics: Sequence[Any], columns: tuple[str, ...] = (),
+                  bounds: tuple[tuple[str, str, str, str], ...] = ()) -> str:
+    """The metrics' table (``columns``, or every metric but the bounds and efficiencies) and the
+    bounds' (``bounds``: quantity, unit, bound metric, efficiency metric)."""
+    shown = columns or tuple(m.name for m in metrics if m.efficiency is None and not m.name.endswith("_bound"))
+    lines = [f"**{stats['experiment']} / {stats['scenario']}** ({stats.get('label', '')}), {stats['runs']} run(s), "
+             f"seed {stats['seed']}", ""]
+    lines += metric_table(stats, metrics, shown, spread=True)
+    bands = [f"{m.name}: 95 % band {lo:.2f}-{hi:.2f}" for m in metrics
+             if m.dimension and (band := stats.get("metric_table", {}).get(m.name, {}).get("band"))
+             for lo, hi in [band]]
+    if bands:
+        lines += ["", "; ".join(bands)]
+    return "\n".join(lines + [""] + bounds_table(stats, bounds))

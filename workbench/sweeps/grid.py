@@ -68,6 +68,8 @@ def parse_value(exp: Experiment, field: str, text: str) -> Any:
             return int(text)
         if isinstance(default, float) or default is None and _looks_numeric(text):
             return float(text)
+        if isinstance(default, tuple) and not default:  # a list of names (add_metrics): comma-separated
+            return split_list(text)
         if isinstance(default, tuple):
             raise ValueError("a tuple setting cannot be swept here")
         return text

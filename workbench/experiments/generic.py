@@ -1,0 +1,89 @@
+"""What an experiment gets for a role it does not write (:meth:`Experiment.role`): a run's summary
+with its metrics alone (``evaluate``) and a recording of every time-series metric, run 0's and
+over the runs, beside the results (``record``); the table's default is
+:func:`.markdown.default_table`. A new experiment writes the roles where it has something of its
+own to say (a map, a paper's table) and takes these for the rest.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import rerun as rr
+import rerun.blueprint as rrb
+
+from workbench.experiments import plots
+from workbench.experiments.contract import RunResult, RunSummary
+from workbench.experiments.metric import Metric
+from workbench.recording import draw
+from workbench.recording import layout as views
+
+TL = "time"
+
+
+# --- evaluate ------------------------------------------------------------------------------------
+
+def summarise(result: RunResult, cfg: Any, run: int) -> RunSummary:
+    """A run's summary: its number and what failed (the contract adds the metrics' samples)."""
+    return RunSummary(run, failed=dict(result.failed))
+
+
+def statistics(cfg: Any, runs: list[RunSummary], stats: dict) -> None:
+    """Nothing beyond the metrics' figures."""
+
+
+# --- record --------------------------------------------------------------------------------------
+
+def _series(first: RunResult, runs: list[RunSummary]) -> tuple[dict[str, views.Curves], dict[str, views.Curves]]:
+    """Every time-series metric: run 0's values (``/run0/<metric>``) and over the runs
+    (``/metrics/<metric>``), as the plots show them."""
+    zero, over = {}, {}
+    for m in first.metrics:
+        c = _run0(m, runs[0])
+        if c is not None:
+            zero[f"/run0/{m.name}"] = c
+        c = plots.over_runs(m, runs)
+        if c is not None:
+            over[f"/metrics/{m.name}"] = c
+    return zero, over
+
+
+def _run0(m: Metric, summary: RunSummary) -> views.Curves | None:
+    series, t = {}, None
+    for name, row in summary.metrics.items():
+        v = row.get(m.name)
+        if v is not None and v.t is not None:
+            t, series[name] = v.t, v.values
+    return None if t is None else views.Curves(t, series, m.unit)
+
+
+def _span(curves: dict[str, views.Curves]) -> tuple[float, float]:
+    t = np.concatenate([c.t for c in curves.values()]) if curves else np.zeros(1)
+    return float(np.min(t)), float(max(np.max(t), np.min(t) + 1e-9))
+
+
+def layout(first: RunResult, runs: list[RunSummary]) -> rrb.Blueprint:
+    """Tabs: run 0's metrics, the metrics over runs, the results."""
+    zero, over = _series(first, runs)
+    span = _span({**zero, **over})
+    tabs = []
+    for name, curves in (("run 0", zero), ("over runs", over)):
+        if curves:
+            tabs.append(rrb.Vertical(*[views.plot(o, f"{o.rsplit('/', 1)[1]} ({c.unit})" if c.unit else
+                                                  o.rsplit("/", 1)[1], span, c, legend=i == 0)
+                                       for i, (o, c) in enumerate(curves.items())], name=name))
+    tabs.append(rrb.TextDocumentView(origin="/summary", name="results"))
+    return rrb.Blueprint(rrb.Tabs(*tabs), collapse_panels=True)
+
+
+def record_run(rec: rr.RecordingStream, first: RunResult, zero: RunSummary) -> None:
+    """Run 0's time-series metrics, each estimator in its colour."""
+    draw.plot_series(rec, TL, _series(first, [zero])[0], first.estimators)
+
+
+def record_runs(rec: rr.RecordingStream, first: RunResult, runs: list[RunSummary], table_md: str) -> None:
+    """The metrics over runs (the chi-square bands grey) and the results table."""
+    draw.plot_series(rec, TL, _series(first, runs)[1], first.estimators)
+    rec.log("/summary", rr.TextDocument(table_md, media_type=rr.MediaType.MARKDOWN), static=True)
+
