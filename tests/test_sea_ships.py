@@ -12,7 +12,7 @@ from launcher import DATA, wb
 import workbench
 from workbench.errors import DataWarning, WorkbenchError
 from workbench.experiments import get
-from workbench.experiments.sea import ais, uav
+from workbench.experiments.sea.readers import ais, uav
 from workbench.recording import readback
 from workbench.sweeps import runner
 

@@ -27,7 +27,7 @@ class RunResult:
     estimates: dict[str, Estimate]
     estimators: dict[str, Estimator] = field(default_factory=dict)
     failed: dict[str, str] = field(default_factory=dict)  # estimators that failed: one line each
-    images: object | None = None                  # the image stage (``from_images``): images.ImageStage
+    images: object | None = None                  # the image stage (``from_images``): imaging.stage.ImageStage
     simulated: tuple[SeaData, dict[str, Estimate]] | None = None  # the same run on simulated angles
     scenario_seen: np.ndarray | None = None       # the scenario's own seen mask
 
@@ -36,12 +36,12 @@ def make_data(cfg: SeaConfig, run: int) -> SeaData:
     """The run's dataset, seeded by ``(seed, run)`` so runs are independent and repeatable.
 
     With ``--mmsi all`` run k is run ``k % runs`` of ship ``k // runs`` (the usable ships by
-    MMSI, :func:`.ais.ship_set`), seeded by ``(seed, k % runs)``: each ship's runs are the very
+    MMSI, :func:`.readers.ais.ship_set`), seeded by ``(seed, k % runs)``: each ship's runs are the very
     runs ``--mmsi <that ship>`` makes.
     """
     if cfg.scenario != "ais":
         return simulate(cfg, np.random.default_rng([cfg.seed, run]))
-    from workbench.experiments.sea import ais
+    from workbench.experiments.sea.readers import ais
 
     mmsi, k = cfg.mmsi, run
     if cfg.mmsi == ALL_SHIPS:
@@ -57,7 +57,7 @@ def make_data(cfg: SeaConfig, run: int) -> SeaData:
 
 def _ships(cfg: SeaConfig) -> list[int]:
     """The ships ``--mmsi all`` runs; none is a one-line error naming why each was left out."""
-    from workbench.experiments.sea import ais
+    from workbench.experiments.sea.readers import ais
 
     ships, skipped = ais.ship_set(cfg.data, cfg.duration, cfg.ais_max_gap)
     require(bool(ships), f"no ship in the AIS file can be run for {cfg.duration:g} s "
@@ -79,7 +79,7 @@ def grid_values(name: str, values: tuple, scenario: str | None, fixed: dict) -> 
         return values, []
     from dataclasses import fields
 
-    from workbench.experiments.sea import ais
+    from workbench.experiments.sea.readers import ais
 
     known = {f.name for f in fields(SeaConfig)}
     cfg = SeaConfig(scenario=scenario or "paper", **{k: v for k, v in fixed.items() if k in known})
@@ -98,7 +98,7 @@ def run_once(cfg: SeaConfig, run: int, estimators: list[Estimator], record: bool
     if not cfg.from_images:
         est, failed = estimate_all(estimators, data, cfg, RunContext(run, record), check)
         return RunResult(data, est, table, failed)
-    from workbench.experiments.sea import images
+    from workbench.experiments.sea.imaging import stage as images
 
     stage = images.measure(data, cfg, run, record)
     img = images.from_stage(data, stage)

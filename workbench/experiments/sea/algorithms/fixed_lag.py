@@ -24,7 +24,7 @@ from gtsam.symbol_shorthand import P, V
 
 from workbench.experiments.contract import RunContext
 from workbench.experiments.plugins import estimator
-from workbench.experiments.sea import smoother
+from workbench.experiments.sea.algorithms import smoother
 from workbench.experiments.sea.config import SeaConfig
 from workbench.experiments.sea.estimate import Estimate, from_positions
 from workbench.experiments.sea.scenario import SeaData

@@ -35,7 +35,7 @@ from scipy.interpolate import PchipInterpolator
 
 from workbench.errors import WorkbenchError
 from workbench.estimation.angles import wrap
-from workbench.experiments.sea import csvfile
+from workbench.experiments.sea.readers import csvfile
 from workbench.paths import data_file
 
 DEFAULT_FILE = "ais/SolentAIS_20160112_130211.csv"
@@ -219,7 +219,7 @@ def ship_scenario(path: Path | None, mmsi: int | None, duration: float, dt: floa
     path = data_file(path, DEFAULT_FILE)
     uav_stamp = None
     if observer == "uav":
-        from workbench.experiments.sea import uav
+        from workbench.experiments.sea.readers import uav
 
         uav_stamp = stamp(data_file(uav_path, uav.DEFAULT_FILE))
     return _ship_scenario(stamp(path), mmsi, duration, dt, standoff, max_gap, observer, uav_stamp, uav_start)
@@ -256,7 +256,7 @@ def _ship_scenario(file: tuple, mmsi: int | None, duration: float, dt: float, st
     repairs = dict(ais.repairs)
     observer_path = np.zeros((steps, 2))
     if observer == "uav":
-        from workbench.experiments.sea import uav
+        from workbench.experiments.sea.readers import uav
 
         log = uav._read(*uav_file)
         observer_path = uav.placed(log, uav_start + np.arange(steps) * dt)

@@ -37,8 +37,8 @@ import numpy as np
 from scipy.interpolate import PchipInterpolator
 
 from workbench.errors import WorkbenchError
-from workbench.experiments.sea import csvfile
-from workbench.experiments.sea.ais import stamp, to_local
+from workbench.experiments.sea.readers import csvfile
+from workbench.experiments.sea.readers.ais import stamp, to_local
 from workbench.paths import data_file
 
 DEFAULT_FILE = "ais/UAV_Rot.csv"
