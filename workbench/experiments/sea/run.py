@@ -41,14 +41,21 @@ def make_data(cfg: SeaConfig, run: int) -> SeaData:
     """
     if cfg.scenario != "ais":
         return simulate(cfg, np.random.default_rng([cfg.seed, run]))
-    from workbench.experiments.sea.readers import ais
+    from workbench.experiments.sea.readers import ais, uav
+    from workbench.paths import data_file
 
     mmsi, k = cfg.mmsi, run
     if cfg.mmsi == ALL_SHIPS:
         ships = _ships(cfg)
         mmsi, k = ships[run // cfg.runs], run % cfg.runs
-    ship = ais.ship_scenario(cfg.data, mmsi, cfg.duration, cfg.dt, cfg.ais_range, cfg.ais_max_gap, cfg.observer,
-                             cfg.uav_data, cfg.uav_start)
+    path = data_file(cfg.data, ais.DEFAULT_FILE)  # both files looked for before either is read
+    flight = data_file(cfg.uav_data, uav.DEFAULT_FILE) if cfg.observer == "uav" else None
+    ship = ais.ship_scenario(path, mmsi, cfg.duration, cfg.dt, cfg.ais_range, cfg.ais_max_gap)
+    if flight is not None:  # the UAV's flight carries the camera from where the mast stands
+        log, start = uav.read(flight), cfg.uav_start
+        ship = {**ship, "observer": uav.placed(log, start + np.arange(len(ship["target"])) * cfg.dt),
+                "label": ship["label"] + f", from the UAV flight at {start:g}-{start + cfg.duration:g} s",
+                "repairs": {**ship["repairs"], **log.repairs}}
     data = simulate(cfg, np.random.default_rng([cfg.seed, k]), target=ship["target"], observer=ship["observer"],
                     course=ship["course"], label=ship["label"])
     data.ship, data.repairs = ship["mmsi"], dict(ship["repairs"])
