@@ -16,19 +16,20 @@ import time
 
 import numpy as np
 
-from workbench.experiments.sea import camera as cm
-from workbench.experiments.sea import detect, images, run
+from workbench.experiments.sea import run
 from workbench.experiments.sea.config import SeaConfig
-from workbench.experiments.sea.render import Renderer
+from workbench.experiments.sea.imaging import camera as cm
+from workbench.experiments.sea.imaging import detect, stage
+from workbench.experiments.sea.imaging.render import Renderer
 
 
 def bench(size: tuple[int, int], frames: int) -> dict:
     cfg = SeaConfig(from_images=True, image_size=size).validate()
     data = run.make_data(cfg, 0)
-    cam = images.camera_for(data, cfg)
+    cam = stage.camera_for(data, cfg)
     rng = np.random.default_rng(0)
     renderer = Renderer(cam, data.height, rng)
-    tilt, roll = images.attitude(cfg, data.t, rng)
+    tilt, roll = stage.attitude(cfg, data.t, rng)
     steps = np.linspace(0, data.steps - 1, frames).astype(int)
     t0, c0 = time.perf_counter(), time.process_time()
     rendered = []

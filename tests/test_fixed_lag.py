@@ -13,9 +13,9 @@ from workbench.experiments.omni import fixed_lag as omni_fl
 from workbench.experiments.omni import graph
 from workbench.experiments.omni import run as omni_run
 from workbench.experiments.omni.config import OmniConfig
-from workbench.experiments.sea import fixed_lag as sea_fl
 from workbench.experiments.sea import run as sea_run
-from workbench.experiments.sea import smoother
+from workbench.experiments.sea.algorithms import fixed_lag as sea_fl
+from workbench.experiments.sea.algorithms import smoother
 from workbench.experiments.sea.config import SeaConfig
 
 

@@ -329,7 +329,7 @@ def test_view_checks_the_port(a_recording):
 def _ais(tmp_path: Path, lat: str, lon: str = "-1.09", where: int = 1) -> Path:
     from datetime import datetime, timedelta
 
-    from workbench.experiments.sea import ais
+    from workbench.experiments.sea.readers import ais
 
     t0 = datetime(2016, 1, 12, 13, 0, 0)
     rows = [f"{(t0 + timedelta(seconds=10 * k)).isoformat(sep=' ')},235,{50.77 + 1e-4 * k},{-1.09 + 1e-4 * k},90.0,5.0"
@@ -347,7 +347,7 @@ def _ais(tmp_path: Path, lat: str, lon: str = "-1.09", where: int = 1) -> Path:
                                               ("50.7", "200", "longitude 200 deg is outside -180..180"),
                                               ("50.7", "1e300", "longitude 1e+300 deg is outside")])
 def test_ais_positions_out_of_range_are_one_line(tmp_path, lat, lon, needle):
-    from workbench.experiments.sea import ais
+    from workbench.experiments.sea.readers import ais
 
     path = _ais(tmp_path, lat, lon)
     with pytest.raises(WorkbenchError) as err:
@@ -357,7 +357,7 @@ def test_ais_positions_out_of_range_are_one_line(tmp_path, lat, lon, needle):
 
 def test_ais_position_not_available_is_left_out_and_counted(tmp_path):
     from workbench.errors import DataWarning
-    from workbench.experiments.sea import ais
+    from workbench.experiments.sea.readers import ais
 
     with pytest.warns(DataWarning, match="not available"):
         read = ais.read(_ais(tmp_path, "91", "181"))

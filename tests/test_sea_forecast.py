@@ -8,7 +8,8 @@ import pytest
 
 import workbench
 from workbench.estimation.angles import from_arcmin
-from workbench.experiments.sea import ar_filter, evaluate, report, run
+from workbench.experiments.sea import evaluate, report, run
+from workbench.experiments.sea.algorithms import ar_filter
 from workbench.experiments.sea.estimate import Estimate
 
 

@@ -8,12 +8,13 @@ import sys
 import numpy as np
 import pytest
 
-from workbench.experiments.sea import camera as cm
-from workbench.experiments.sea import detect, evaluate, images, run
-from workbench.experiments.sea.camera import Camera
+from workbench.experiments.sea import evaluate, run
 from workbench.experiments.sea.config import SeaConfig
 from workbench.experiments.sea.experiment import EXPERIMENT
-from workbench.experiments.sea.render import Renderer
+from workbench.experiments.sea.imaging import camera as cm
+from workbench.experiments.sea.imaging import detect, stage
+from workbench.experiments.sea.imaging.camera import Camera
+from workbench.experiments.sea.imaging.render import Renderer
 from workbench.recording import readback
 
 ARCMIN = np.deg2rad(1 / 60)
@@ -123,7 +124,7 @@ def test_track_through_a_loss(tmp_path):
     cfg = SeaConfig(scenario="track-loss", duration=8.0, loss_start=3.0, loss_end=5.0, from_images=True,
                     image_size=(480, 270)).validate()
     data = run.make_data(cfg, 0)
-    st = images.measure(data, cfg, 0)
+    st = stage.measure(data, cfg, 0)
     hidden = ~data.seen
     assert hidden.sum() == 20
     assert not st.detected[hidden].any()                         # nothing invented while hidden
@@ -170,7 +171,7 @@ def test_estimators_coast_through_unseen_steps_anywhere(paper_run):
     seen[[0, 3, 4, 7, 40, 41, 300]] = False
     seen[500:530] = False
     seen[-3:] = False
-    data = images.with_angles(d, d.alpha_meas, d.beta_meas, seen)
+    data = stage.with_angles(d, d.alpha_meas, d.beta_meas, seen)
     assert np.isnan(data.alpha_meas[~seen]).all() and not data.seen[0]
     assert np.isfinite(d.alpha_meas).all()                        # the original is untouched
     est, failed = EXPERIMENT.estimate(data, cfg)

@@ -9,7 +9,8 @@ import workbench
 from workbench.estimation import diffuse_rls as drls
 from workbench.estimation import kalman, metrics
 from workbench.estimation.angles import from_arcmin, to_arcmin, wrap
-from workbench.experiments.sea import ar_filter, ekf, geometric, geometry, run, smoother
+from workbench.experiments.sea import geometry, run
+from workbench.experiments.sea.algorithms import ar_filter, ekf, geometric, smoother
 
 
 def test_angles_hand_case():

@@ -12,11 +12,11 @@ from launcher import DATA, wb
 import workbench
 from workbench.errors import DataWarning, WorkbenchError
 from workbench.experiments import get
-from workbench.experiments.sea import ais, uav
+from workbench.experiments.sea.readers import ais, csvfile, uav
 from workbench.recording import readback
 from workbench.sweeps import runner
 
-R = ais.EARTH_RADIUS
+R = csvfile.EARTH_RADIUS
 T0 = datetime(2016, 1, 12, 13, 2, 11)
 LAT0, LON0 = 50.78, -1.10
 FAST = "geometric,ekf"
@@ -170,7 +170,7 @@ def test_uav_observer_path_is_the_files_converted_positions(ais_file, uav_file):
                                uav_start=5.0).validate()
     data = get("sea").dataset(cfg, 0)
     log = uav.read(uav_file)
-    local = ais.to_local(log.lat, log.lon, float(np.mean(log.lat)), float(np.mean(log.lon)))
+    local = csvfile.to_local(log.lat, log.lon, float(np.mean(log.lat)), float(np.mean(log.lon)))
     k = np.arange(0, 41)                              # the fixes at 5 .. 45 s are steps 0, 10, ..., 400
     np.testing.assert_allclose(data.observer[k * 10], local[5 + k] - local[5], atol=1e-9)
     _, metres = uav_rows()

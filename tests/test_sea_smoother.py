@@ -6,7 +6,8 @@ import gtsam
 import numpy as np
 from gtsam.symbol_shorthand import P, V
 
-from workbench.experiments.sea import run, smoother
+from workbench.experiments.sea import run
+from workbench.experiments.sea.algorithms import smoother
 
 
 def prefix_map(data, cfg, factors, K):

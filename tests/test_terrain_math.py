@@ -13,7 +13,9 @@ from workbench.estimation import metrics
 from workbench.experiments.terrain import camera, dem, estimators, halftone, navigation, posterior, search
 from workbench.experiments.terrain import scenario as scene
 from workbench.experiments.terrain.config import TerrainConfig
-from workbench.experiments.terrain.run import run_once
+from workbench.experiments.terrain.experiment import EXPERIMENT
+
+run_once = EXPERIMENT.run_once
 
 
 def test_rotation_derivatives_and_axes():

@@ -9,7 +9,9 @@ import pytest
 
 from workbench.experiments.terrain import estimators
 from workbench.experiments.terrain.config import TerrainConfig
-from workbench.experiments.terrain.run import run_once
+from workbench.experiments.terrain.experiment import EXPERIMENT
+
+run_once = EXPERIMENT.run_once
 from workbench.paths import data_root
 
 pytest.importorskip("gtsam")

@@ -14,7 +14,8 @@ import pyarrow as pa
 import pytest
 from rerun.chunk import RrdReader
 
-from workbench.experiments.terrain import evaluate, halftone, navigation, record, run
+from workbench.experiments.terrain import halftone, navigation, record, run
+from workbench.experiments.terrain import metrics as terrain_metrics
 from workbench.experiments.terrain.config import TerrainConfig
 from workbench.experiments.terrain.experiment import EXPERIMENT
 from workbench.paths import data_root
@@ -245,7 +246,7 @@ def test_error_maps_with_legends(recorded):
     first, r, _ = recorded
     for name in first.estimates:
         err = r.image(f"/errors/{name}", "DepthImage:")
-        assert np.allclose(err, evaluate.ground_errors(first)[name], atol=1e-3)    # metres, image II's pixel grid
+        assert np.allclose(err, terrain_metrics.ground_errors(first)[name], atol=1e-3)    # metres, image II's pixel grid
         assert r.values(f"/errors/{name}", "DepthImage:meter")[0] == 1.0
         lo, top = r.values(f"/errors/{name}", "DepthImage:depth_range")
         widest = max(b / a for a, b in zip(record.NICE[:-1], record.NICE[1:], strict=True))  # 3 -> 4, 6 -> 8
@@ -259,7 +260,7 @@ def test_error_maps_with_legends(recorded):
         title = r.values(f"/errors/{name}/legend/title", "Points2D:labels")[0]
         below = r.values(f"/errors/{name}/legend/title", "Points2D:positions", 2)
         assert len(below) == 2 and below[1, 1] > below[0, 1]      # a spacer under the title keeps it in view
-        assert name in title and f"{halftone.rmse(evaluate.ground_errors(first)[name]):.2f} m" in title
+        assert name in title and f"{halftone.rmse(terrain_metrics.ground_errors(first)[name]):.2f} m" in title
     nav = r.values("/errors/navigation", "DepthImage:depth_range")[1]
     refined = r.values("/errors/recurrent-search-refined", "DepthImage:depth_range")[1]
     assert refined < 0.5 * nav

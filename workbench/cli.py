@@ -1,7 +1,7 @@
 """The ``workbench`` launcher: a thin typer layer over :func:`workbench.api.run`.
 
 One command per registered experiment, built from its contract by one code path
-(:mod:`workbench.commands`), and the commands an experiment declares (terrain's ``measure``);
+(:mod:`workbench.commands`), and the commands an experiment declares;
 plus ``list``, ``demo``, the tools (``view``, ``info``, ``replay``, ``screenshot``, ``compare``:
 :mod:`workbench.tools.commands`) and ``sweep`` / ``sweep-report`` (:mod:`workbench.sweeps.commands`).
 Nothing here knows an experiment's settings.

@@ -62,7 +62,7 @@ class SeaConfig(Config):
     data: Path | None = None
     ais_range: float = 1000.0
     ais_max_gap: float = 200.0        # the longest silence between a ship's reports inside a run, s
-    observer: str = "mast"            # ais: "mast" (stationary) | "uav" (the real UAV flight, see sea.uav)
+    observer: str = "mast"            # ais: "mast" (stationary) | "uav" (the real UAV flight, see sea.readers.uav)
     uav_data: Path | None = None
     uav_start: float = 0.0            # where in the UAV flight the run starts, s
     # the image stage (``--from-images``): frames rendered from the truth, angles detected
@@ -156,7 +156,7 @@ def _mmsi(text: str) -> int | str:
 
 
 def _size(text: str) -> tuple[int, int]:
-    from workbench.experiments.sea.camera import parse_size
+    from workbench.experiments.sea.imaging.camera import parse_size
 
     return parse_size(text)
 

@@ -15,38 +15,38 @@ from workbench.experiments.sea.scenario import SeaData
 
 
 def geometric(data: SeaData, cfg: SeaConfig, ctx: RunContext) -> Estimate:
-    from workbench.experiments.sea import geometric
+    from workbench.experiments.sea.algorithms import geometric
 
     return geometric.estimate(data)
 
 
 def rls(data: SeaData, cfg: SeaConfig, ctx: RunContext) -> Estimate:
-    from workbench.experiments.sea import ar_filter
+    from workbench.experiments.sea.algorithms import ar_filter
 
     return ar_filter.estimate(data, cfg, windowed=False)
 
 
 def window_rls(data: SeaData, cfg: SeaConfig, ctx: RunContext) -> Estimate:
-    from workbench.experiments.sea import ar_filter
+    from workbench.experiments.sea.algorithms import ar_filter
 
     return ar_filter.estimate(data, cfg, windowed=True)
 
 
 def factors(data: SeaData, cfg: SeaConfig, ctx: RunContext):
     """The run's GTSAM factors, built once for every graph estimator (same data, same graph)."""
-    from workbench.experiments.sea import smoother
+    from workbench.experiments.sea.algorithms import smoother
 
     return ctx.shared("factors", lambda: smoother.FactorSet(data, cfg))
 
 
 def gtsam_batch(data: SeaData, cfg: SeaConfig, ctx: RunContext) -> Estimate:
-    from workbench.experiments.sea import smoother
+    from workbench.experiments.sea.algorithms import smoother
 
     return smoother.batch(data, cfg, ctx.record, factors(data, cfg, ctx))
 
 
 def isam2(data: SeaData, cfg: SeaConfig, ctx: RunContext) -> Estimate:
-    from workbench.experiments.sea import smoother
+    from workbench.experiments.sea.algorithms import smoother
 
     return smoother.incremental(data, cfg, ctx.record, factors(data, cfg, ctx))
 
@@ -59,7 +59,7 @@ TABLE: dict[str, Estimator] = table(
               causal=True, covariances=False),
     Estimator("window-rls", window_rls, (0, 210, 200), "algorithm 3: sliding-window diffuse RLS on the AR models",
               causal=True, covariances=False),
-    Estimator("ekf", "workbench.experiments.sea.ekf:estimate", (230, 70, 70),
+    Estimator("ekf", "workbench.experiments.sea.algorithms.ekf:estimate", (230, 70, 70),
               "EKF on a constant-velocity target (the paper's reference [8])", causal=True, covariances=True),
     Estimator("gtsam", gtsam_batch, (190, 90, 240), "GTSAM LM smoother over the whole run (uses the future)",
               causal=False, covariances=True),

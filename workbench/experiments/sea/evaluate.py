@@ -185,7 +185,7 @@ def ship_statistics(cfg: SeaConfig, runs: list[RunSummary]) -> dict:
     bias), ``over_ships`` (estimator -> figure -> median, worst, worst_mmsi, mean), ``ships_skipped``
     (MMSI -> reason) and a ``label``.
     """
-    from workbench.experiments.sea import ais
+    from workbench.experiments.sea.readers import ais
 
     groups: dict[int, list[RunSummary]] = {}
     for r in runs:

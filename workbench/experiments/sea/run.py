@@ -25,7 +25,7 @@ class RunResult(contract.RunResult):
     """One run (:class:`~workbench.experiments.contract.RunResult`) and, with ``from_images``, its
     image stage and the same run's estimates on the simulated angles."""
 
-    images: object | None = None                  # the image stage (``from_images``): images.ImageStage
+    images: object | None = None                  # the image stage (``from_images``): imaging.stage.ImageStage
     simulated: tuple[SeaData, dict[str, Estimate]] | None = None  # the same run on simulated angles
     scenario_seen: np.ndarray | None = None       # the scenario's own seen mask
 
@@ -34,19 +34,26 @@ def make_data(cfg: SeaConfig, run: int) -> SeaData:
     """The run's dataset, seeded by ``(seed, run)`` so runs are independent and repeatable.
 
     With ``--mmsi all`` run k is run ``k % runs`` of ship ``k // runs`` (the usable ships by
-    MMSI, :func:`.ais.ship_set`), seeded by ``(seed, k % runs)``: each ship's runs are the very
+    MMSI, :func:`.readers.ais.ship_set`), seeded by ``(seed, k % runs)``: each ship's runs are the very
     runs ``--mmsi <that ship>`` makes.
     """
     if cfg.scenario != "ais":
         return simulate(cfg, np.random.default_rng([cfg.seed, run]))
-    from workbench.experiments.sea import ais
+    from workbench.experiments.sea.readers import ais, uav
+    from workbench.paths import data_file
 
     mmsi, k = cfg.mmsi, run
     if cfg.mmsi == ALL_SHIPS:
         ships = _ships(cfg)
         mmsi, k = ships[run // cfg.runs], run % cfg.runs
-    ship = ais.ship_scenario(cfg.data, mmsi, cfg.duration, cfg.dt, cfg.ais_range, cfg.ais_max_gap, cfg.observer,
-                             cfg.uav_data, cfg.uav_start)
+    path = data_file(cfg.data, ais.DEFAULT_FILE)  # both files looked for before either is read
+    flight = data_file(cfg.uav_data, uav.DEFAULT_FILE) if cfg.observer == "uav" else None
+    ship = ais.ship_scenario(path, mmsi, cfg.duration, cfg.dt, cfg.ais_range, cfg.ais_max_gap)
+    if flight is not None:  # the UAV's flight carries the camera from where the mast stands
+        log, start = uav.read(flight), cfg.uav_start
+        ship = {**ship, "observer": uav.placed(log, start + np.arange(len(ship["target"])) * cfg.dt),
+                "label": ship["label"] + f", from the UAV flight at {start:g}-{start + cfg.duration:g} s",
+                "repairs": {**ship["repairs"], **log.repairs}}
     data = simulate(cfg, np.random.default_rng([cfg.seed, k]), target=ship["target"], observer=ship["observer"],
                     course=ship["course"], label=ship["label"])
     data.ship, data.repairs = ship["mmsi"], dict(ship["repairs"])
@@ -55,7 +62,7 @@ def make_data(cfg: SeaConfig, run: int) -> SeaData:
 
 def _ships(cfg: SeaConfig) -> list[int]:
     """The ships ``--mmsi all`` runs; none is a one-line error naming why each was left out."""
-    from workbench.experiments.sea import ais
+    from workbench.experiments.sea.readers import ais
 
     ships, skipped = ais.ship_set(cfg.data, cfg.duration, cfg.ais_max_gap)
     require(bool(ships), f"no ship in the AIS file can be run for {cfg.duration:g} s "
@@ -77,7 +84,7 @@ def grid_values(name: str, values: tuple, scenario: str | None, fixed: dict) -> 
         return values, []
     from dataclasses import fields
 
-    from workbench.experiments.sea import ais
+    from workbench.experiments.sea.readers import ais
 
     known = {f.name for f in fields(SeaConfig)}
     cfg = SeaConfig(scenario=scenario or "paper", **{k: v for k, v in fixed.items() if k in known})
@@ -96,7 +103,7 @@ def run_once(cfg: SeaConfig, run: int, estimators: list[Estimator], record: bool
     data = make_data(cfg, run)
     if not cfg.from_images:
         return contract.run_estimators(EXPERIMENT, cfg, run, estimators, data, record, threads)
-    from workbench.experiments.sea import images
+    from workbench.experiments.sea.imaging import stage as images
 
     stage = images.measure(data, cfg, run, record)
     img = images.from_stage(data, stage)

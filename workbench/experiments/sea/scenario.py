@@ -1,5 +1,5 @@
 """Simulated scenarios: the spec's reading of the paper's Table 1, the impulse of Fig. 5,
-a track loss, and a real AIS ship as the target (see :mod:`.ais`).
+a track loss, and a real AIS ship as the target (see :mod:`.readers.ais`).
 
 A dataset is plain arrays; every estimator reads the same one.
 """
@@ -40,7 +40,7 @@ class SeaData:
     label: str = ""
     impulse: np.ndarray | None = None  # (T, 2) the impulse noise added to alpha, beta (impulse scenario)
     ship: int | None = None            # ais: the ship's MMSI
-    repairs: dict | None = None        # ais: what reading the real files repaired (ais.AisFile.repairs, uav)
+    repairs: dict | None = None        # ais: what reading the real files repaired (readers.ais.AisFile.repairs, uav)
 
     @property
     def steps(self) -> int:

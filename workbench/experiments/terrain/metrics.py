@@ -46,19 +46,19 @@ def dr_fraction(data: TerrainData, est: Estimate, ctx: MetricContext) -> Values:
     return Values([np.hypot(p[0], p[1]) / ctx.cfg.max_linear])
 
 
+def ground_errors(res: Any) -> dict[str, np.ndarray]:
+    """Per-pixel ground error maps of image II's halftone model per estimate of a run (every pixel
+    for the recorded run, about 100 x 100 samples otherwise)."""
+    sc = res.scene
+    step = 1 if res.record else max(1, min(sc.k.width, sc.k.height) // 100)
+    truth = (sc.position[1], sc.angles[1])
+    return {name: halftone.ground_error(sc.dem, sc.k, truth, (e.position[1], e.angles[1]), step)
+            for name, e in res.estimates.items()}
+
+
 def ground_maps(ctx: MetricContext) -> dict[str, np.ndarray]:
-    """Per-pixel ground error maps of image II's halftone model per estimate (every pixel for
-    the recorded run, about 100 x 100 samples otherwise), made once a run."""
-
-    def make() -> dict[str, np.ndarray]:
-        res = ctx.result
-        sc = res.scene
-        step = 1 if res.record else max(1, min(sc.k.width, sc.k.height) // 100)
-        truth = (sc.position[1], sc.angles[1])
-        return {name: halftone.ground_error(sc.dem, sc.k, truth, (e.position[1], e.angles[1]), step)
-                for name, e in res.estimates.items()}
-
-    return ctx.shared("ground_maps", make)
+    """:func:`ground_errors` of the run, made once."""
+    return ctx.shared("ground_maps", lambda: ground_errors(ctx.result))
 
 
 def ground_rmse(data: TerrainData, est: Estimate, ctx: MetricContext) -> Values:

@@ -35,12 +35,11 @@ from scipy.interpolate import PchipInterpolator
 
 from workbench.errors import WorkbenchError
 from workbench.estimation.angles import wrap
-from workbench.experiments.sea import csvfile
+from workbench.experiments.sea.readers import csvfile
 from workbench.paths import data_file
 
 DEFAULT_FILE = "ais/SolentAIS_20160112_130211.csv"
 COLUMNS = ("Time", "MMSI", "Latitude_degrees", "Longitude_degrees", "COG_degrees", "SOG_knots")
-EARTH_RADIUS = 6371008.8
 MAX_BACKSTEP = 60.0
 """How far back (s) a report may be stamped behind the latest before it and still be put back in
 order (a report relayed late); beyond it the file's time runs backwards and is refused."""
@@ -69,16 +68,10 @@ class AisFile:
     repairs: dict[str, int] = field(default_factory=dict)
 
 
-def stamp(path: Path) -> tuple[str, int, int]:
-    """What identifies a file's contents for the caches: its path, mtime and size."""
-    st = path.stat()
-    return str(path.resolve()), st.st_mtime_ns, st.st_size
-
-
 def read(path: Path | None) -> AisFile:
     """Read an AIS CSV (cached while the file is unchanged); bad files are a WorkbenchError."""
     path = data_file(path, DEFAULT_FILE)
-    return _read(*stamp(path))
+    return _read(*csvfile.stamp(path))
 
 
 def load(path: Path | None) -> dict[int, ShipTrack]:
@@ -128,13 +121,6 @@ def _read(name: str, mtime: int, size: int) -> AisFile:
         m = ids == mmsi
         tracks[int(mmsi)] = ShipTrack(int(mmsi), t[m], a[m, 0], a[m, 1], a[m, 2], a[m, 3])
     return AisFile(path, tracks, repairs)
-
-
-def to_local(lat: np.ndarray, lon: np.ndarray, lat0: float, lon0: float) -> np.ndarray:
-    """Latitude/longitude (deg) to east/north metres about ``(lat0, lon0)``."""
-    east = np.deg2rad(lon - lon0) * EARTH_RADIUS * np.cos(np.deg2rad(lat0))
-    north = np.deg2rad(lat - lat0) * EARTH_RADIUS
-    return np.stack([east, north], axis=-1)
 
 
 def usable(track: ShipTrack, duration: float, max_gap: float = MAX_GAP) -> np.ndarray:
@@ -209,25 +195,20 @@ def ship_set(path: Path | None, duration: float, max_gap: float = MAX_GAP) -> tu
 
 
 def ship_scenario(path: Path | None, mmsi: int | None, duration: float, dt: float, standoff: float,
-                  max_gap: float = MAX_GAP, observer: str = "mast", uav_path: Path | None = None,
-                  uav_start: float = 0.0) -> dict:
-    """Target truth and observer for ``scenario ais``, ready for :func:`scenario.simulate`.
+                  max_gap: float = MAX_GAP) -> dict:
+    """Target truth and observer (the mast) for ``scenario ais``, ready for :func:`scenario.simulate`;
+    ``--observer uav`` puts the UAV's path in its place (:func:`.run.make_data`, :mod:`.uav`).
 
-    Cached while the files are unchanged: every run of a Monte Carlo set shares one ship, so
+    Cached while the file is unchanged: every run of a Monte Carlo set shares one ship, so
     the file is read once per process (the arrays are read-only by convention).
     """
     path = data_file(path, DEFAULT_FILE)
-    uav_stamp = None
-    if observer == "uav":
-        from workbench.experiments.sea import uav
-
-        uav_stamp = stamp(data_file(uav_path, uav.DEFAULT_FILE))
-    return _ship_scenario(stamp(path), mmsi, duration, dt, standoff, max_gap, observer, uav_stamp, uav_start)
+    return _ship_scenario(csvfile.stamp(path), mmsi, duration, dt, standoff, max_gap)
 
 
 @functools.lru_cache(maxsize=8)
-def _ship_scenario(file: tuple, mmsi: int | None, duration: float, dt: float, standoff: float, max_gap: float,
-                   observer: str, uav_file: tuple | None, uav_start: float) -> dict:
+def _ship_scenario(file: tuple, mmsi: int | None, duration: float, dt: float, standoff: float,
+                   max_gap: float) -> dict:
     ais = _read(*file)
     tracks = ais.tracks
     if mmsi is None:
@@ -239,7 +220,7 @@ def _ship_scenario(file: tuple, mmsi: int | None, duration: float, dt: float, st
     if why is not None:
         raise WorkbenchError(f"ship {mmsi} cannot be run for --duration {duration:g} s: {why}")
     start, turning = best_segment(track, duration, max_gap)
-    xy = to_local(track.lat, track.lon, float(np.mean(track.lat)), float(np.mean(track.lon)))
+    xy = csvfile.to_local(track.lat, track.lon, float(np.mean(track.lat)), float(np.mean(track.lon)))
     steps = int(round(duration / dt)) + 1
     times = start + np.arange(steps) * dt
     interp = PchipInterpolator(track.t, xy, axis=0)
@@ -255,13 +236,6 @@ def _ship_scenario(file: tuple, mmsi: int | None, duration: float, dt: float, st
     label = f"ais MMSI {mmsi}, t0 = {start:.0f} s, turning {np.rad2deg(max(turning, 0.0)):.0f} deg"
     repairs = dict(ais.repairs)
     observer_path = np.zeros((steps, 2))
-    if observer == "uav":
-        from workbench.experiments.sea import uav
-
-        log = uav._read(*uav_file)
-        observer_path = uav.placed(log, uav_start + np.arange(steps) * dt)
-        repairs.update(log.repairs)
-        label += f", from the UAV flight at {uav_start:g}-{uav_start + duration:g} s"
     # shift the frame so the mast (the UAV's start) stands at the origin, as in the paper's scenario
     target = np.concatenate([pos - obs, vel], axis=1)
     return {"target": target, "observer": observer_path, "course": np.full(steps, look), "label": label,

@@ -19,8 +19,8 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from workbench.experiments.sea import camera as cam_model
-from workbench.experiments.sea.camera import Camera
+from workbench.experiments.sea.imaging import camera as cam_model
+from workbench.experiments.sea.imaging.camera import Camera
 
 # the boat's silhouette in metres (lateral, up): a hull and a cabin, symmetric about x = 0,
 # the waterline along y = 0 (only its centre is the measured point)

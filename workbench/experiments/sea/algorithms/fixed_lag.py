@@ -23,7 +23,7 @@ import numpy as np
 from gtsam.symbol_shorthand import P, V
 
 from workbench.experiments.estimator import RunContext, estimator
-from workbench.experiments.sea import smoother
+from workbench.experiments.sea.algorithms import smoother
 from workbench.experiments.sea.config import SeaConfig
 from workbench.experiments.sea.estimate import Estimate, from_positions
 from workbench.experiments.sea.scenario import SeaData

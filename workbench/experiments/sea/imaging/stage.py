@@ -28,11 +28,11 @@ from dataclasses import dataclass, field, replace
 import cv2
 import numpy as np
 
-from workbench.experiments.sea import camera as cam_model
-from workbench.experiments.sea.camera import Camera
 from workbench.experiments.sea.config import SeaConfig
-from workbench.experiments.sea.detect import DetectorConfig, Tracker
-from workbench.experiments.sea.render import Renderer, colour
+from workbench.experiments.sea.imaging import camera as cam_model
+from workbench.experiments.sea.imaging.camera import Camera
+from workbench.experiments.sea.imaging.detect import DetectorConfig, Tracker
+from workbench.experiments.sea.imaging.render import Renderer, colour
 from workbench.experiments.sea.scenario import SeaData
 
 BAD_KINDS = ("wrong size", "wrong type", "all sky", "empty")

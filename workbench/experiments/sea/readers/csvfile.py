@@ -14,6 +14,9 @@ What is repaired, counted in a ``repairs`` dict and said in one
 What cannot be repaired stays a one-line :class:`~workbench.errors.WorkbenchError`: no header
 or no rows, a needed column missing (the message lists the header's), a bad field anywhere but
 the last line, time running back by more than ``max_backstep``.
+
+What both readers share besides lives here too: a file's stamp for their caches (:func:`stamp`)
+and the local east-north frame (:func:`to_local`).
 """
 
 from __future__ import annotations
@@ -26,6 +29,21 @@ from pathlib import Path
 import numpy as np
 
 from workbench.errors import DataWarning, WorkbenchError
+
+EARTH_RADIUS = 6371008.8
+
+
+def stamp(path: Path) -> tuple[str, int, int]:
+    """What identifies a file's contents for the caches: its path, mtime and size."""
+    st = path.stat()
+    return str(path.resolve()), st.st_mtime_ns, st.st_size
+
+
+def to_local(lat: np.ndarray, lon: np.ndarray, lat0: float, lon0: float) -> np.ndarray:
+    """Latitude/longitude (deg) to east/north metres about ``(lat0, lon0)``."""
+    east = np.deg2rad(lon - lon0) * EARTH_RADIUS * np.cos(np.deg2rad(lat0))
+    north = np.deg2rad(lat - lat0) * EARTH_RADIUS
+    return np.stack([east, north], axis=-1)
 
 
 def finite(text: str) -> float:

@@ -37,8 +37,7 @@ import numpy as np
 from scipy.interpolate import PchipInterpolator
 
 from workbench.errors import WorkbenchError
-from workbench.experiments.sea import csvfile
-from workbench.experiments.sea.ais import stamp, to_local
+from workbench.experiments.sea.readers import csvfile
 from workbench.paths import data_file
 
 DEFAULT_FILE = "ais/UAV_Rot.csv"
@@ -65,12 +64,12 @@ class UavLog:
     @property
     def local(self) -> np.ndarray:
         """East/north metres about the flight's centre, ``(N, 2)``."""
-        return to_local(self.lat, self.lon, float(np.mean(self.lat)), float(np.mean(self.lon)))
+        return csvfile.to_local(self.lat, self.lon, float(np.mean(self.lat)), float(np.mean(self.lon)))
 
 
 def read(path: Path | None) -> UavLog:
     """Read the UAV log (cached while the file is unchanged); bad files are a WorkbenchError."""
-    return _read(*stamp(data_file(path, DEFAULT_FILE)))
+    return _read(*csvfile.stamp(data_file(path, DEFAULT_FILE)))
 
 
 def _parse(rec: dict[str, str]) -> tuple:

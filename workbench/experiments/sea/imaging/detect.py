@@ -37,8 +37,8 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
-from workbench.experiments.sea import camera as cam_model
-from workbench.experiments.sea.camera import Camera
+from workbench.experiments.sea.imaging import camera as cam_model
+from workbench.experiments.sea.imaging.camera import Camera
 
 
 @dataclass

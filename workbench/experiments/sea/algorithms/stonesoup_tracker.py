@@ -30,7 +30,8 @@ from stonesoup.types.state import GaussianState
 from stonesoup.updater.kalman import ExtendedKalmanUpdater, UnscentedKalmanUpdater
 
 from workbench.experiments.estimator import estimator
-from workbench.experiments.sea import ekf, geometry
+from workbench.experiments.sea import geometry
+from workbench.experiments.sea.algorithms import ekf
 from workbench.experiments.sea.config import SeaConfig
 from workbench.experiments.sea.estimate import Estimate, from_positions
 from workbench.experiments.sea.scenario import SeaData
