@@ -10,9 +10,9 @@ import pytest
 from workbench.experiments.terrain import estimators
 from workbench.experiments.terrain.config import TerrainConfig
 from workbench.experiments.terrain.experiment import EXPERIMENT
+from workbench.paths import data_root
 
 run_once = EXPERIMENT.run_once
-from workbench.paths import data_root
 
 pytest.importorskip("gtsam")
 NGI = data_root() / "ngi"

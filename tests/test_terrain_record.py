@@ -246,7 +246,7 @@ def test_error_maps_with_legends(recorded):
     first, r, _ = recorded
     for name in first.estimates:
         err = r.image(f"/errors/{name}", "DepthImage:")
-        assert np.allclose(err, terrain_metrics.ground_errors(first)[name], atol=1e-3)    # metres, image II's pixel grid
+        assert np.allclose(err, terrain_metrics.ground_errors(first)[name], atol=1e-3)  # m, image II's pixels
         assert r.values(f"/errors/{name}", "DepthImage:meter")[0] == 1.0
         lo, top = r.values(f"/errors/{name}", "DepthImage:depth_range")
         widest = max(b / a for a, b in zip(record.NICE[:-1], record.NICE[1:], strict=True))  # 3 -> 4, 6 -> 8
