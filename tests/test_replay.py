@@ -110,3 +110,25 @@ def test_bad_files_are_one_line_and_exit_2(recorded, tmp_path):
             assert r.returncode == 2 and needle in r.stderr and len(r.stderr.strip().splitlines()) == 1, \
                 (command, path.name, r.stderr)
     assert os.path.getsize(truncated) == 300 and readback.row_counts(recorded["sea"])
+
+
+BEFORE = Path(__file__).parent / "data" / "before-0.1"
+
+
+@pytest.mark.parametrize("experiment", ["sea", "omni", "terrain"])
+def test_recordings_made_before_the_keys_were_renamed_replay(experiment):
+    """A recording from before the metric interface (its metrics JSON under the old nested keys:
+    ``rmse.x``, ``paper.mean_r``, ``scene``, ...) reproduces number for number, and its table
+    reads as a new one's."""
+    path = BEFORE / f"{experiment}.rrd"
+    stored = provenance.read(path)
+    assert stored.git_commit.startswith("9e0734b") and "estimators" in stored.metrics
+    old = next(iter(stored.metrics["estimators"].values()))
+    nested = {"sea": ("rmse", "x"), "omni": ("rmse", "position"), "terrain": ("paper", "mean_r")}[experiment]
+    assert nested[1] in old[nested[0]] and "position_rmse_whole_run" not in old   # written before the rename
+    r = wb("replay", str(path))
+    assert r.returncode == 0, r.stdout + r.stderr
+    compared = int(r.stdout.split("all ")[1].split(" numbers")[0])
+    assert "reproduces" in r.stdout and compared > 100, r.stdout
+    info = wb("info", str(path))
+    assert info.returncode == 0 and "| estimator |" in info.stdout, info.stderr

@@ -16,7 +16,6 @@ import rerun.blueprint as rrb
 from workbench.experiments import plots
 from workbench.experiments.contract import RunResult, RunSummary
 from workbench.experiments.metric import Metric
-from workbench.recording import draw
 from workbench.recording import layout as views
 
 TL = "time"
@@ -79,11 +78,11 @@ def layout(first: RunResult, runs: list[RunSummary]) -> rrb.Blueprint:
 
 def record_run(rec: rr.RecordingStream, first: RunResult, zero: RunSummary) -> None:
     """Run 0's time-series metrics, each estimator in its colour."""
-    draw.plot_series(rec, TL, _series(first, [zero])[0], first.estimators)
+    plots.draw_curves(rec, _series(first, [zero])[0], first.estimators, over_runs=False, timeline=TL)
 
 
 def record_runs(rec: rr.RecordingStream, first: RunResult, runs: list[RunSummary], table_md: str) -> None:
     """The metrics over runs (the chi-square bands grey) and the results table."""
-    draw.plot_series(rec, TL, _series(first, runs)[1], first.estimators)
-    rec.log("/summary", rr.TextDocument(table_md, media_type=rr.MediaType.MARKDOWN), static=True)
+    plots.draw_curves(rec, _series(first, runs)[1], first.estimators, over_runs=True, timeline=TL)
+    plots.summary(rec, table_md)
 

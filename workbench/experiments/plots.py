@@ -19,6 +19,8 @@ from workbench.experiments import figures, metric
 from workbench.recording.layout import Curves
 
 BAND = {"band_lo": "95 % low", "band_hi": "95 % high"}
+OVER_RUNS = ("/monte_carlo", "/metrics")
+"""The plots of the curves over runs (drawn when every run is done); the others are run 0's."""
 
 
 def over_runs(m: metric.Metric, summaries: Sequence[Any], names: Iterable[str] | None = None) -> Curves | None:
@@ -76,3 +78,19 @@ def tab(curves: Mapping[str, Curves], metrics: Iterable[metric.Metric], span: tu
     names = titles(by_name(metrics), mine)
     return rrb.Vertical(*[layout.plot(o, names[o], span, c, legend=i == 0) for i, (o, c) in enumerate(mine.items())],
                         name="metrics")
+
+
+def draw_curves(rec: Any, curves: Mapping[str, Curves], estimators: Mapping[str, Any], over_runs: bool,
+                others: Mapping[str, tuple] | None = None, timeline: str = "time") -> None:
+    """Run 0's plots (``over_runs`` False: as soon as it is done) or those over the runs."""
+    from workbench.recording import draw
+
+    draw.plot_series(rec, timeline, dict(curves), dict(estimators),
+                     lambda o: o.startswith(OVER_RUNS) == over_runs, dict(others or {}))
+
+
+def summary(rec: Any, text: str) -> None:
+    """The results (markdown) in the recording's "results" view."""
+    import rerun as rr
+
+    rec.log("/summary", rr.TextDocument(text, media_type=rr.MediaType.MARKDOWN), static=True)

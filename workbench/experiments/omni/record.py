@@ -253,18 +253,15 @@ def record_run(rec: rr.RecordingStream, first: RunResult, zero: RunSummary) -> N
         if est.attempts:
             pt, clouds = _pending(first, est.attempts)
             draw.point_sets(rec, f"{base}/pending", TL, pt, clouds, (255, 140, 0), 0.12, 0.1)
-    draw.plot_series(rec, TL, plots(first, [zero]), first.estimators,
-                     lambda o: not o.startswith(("/monte_carlo", "/metrics")))
+    metric_plots.draw_curves(rec, plots(first, [zero]), first.estimators, over_runs=False, timeline=TL)
     if first.images is not None and first.images.frames:
         _images(rec, first)
 
 
 def record_runs(rec: rr.RecordingStream, first: RunResult, runs: list[RunSummary], table_md: str) -> None:
     """Log the curves over all runs and the results table with how to read the recording."""
-    draw.plot_series(rec, TL, plots(first, runs), first.estimators,
-                     lambda o: o.startswith(("/monte_carlo", "/metrics")), BOUNDS)
-    text = table_md + "\n\n" + how_to_read(first, len(runs))
-    rec.log("/summary", rr.TextDocument(text, media_type=rr.MediaType.MARKDOWN), static=True)
+    metric_plots.draw_curves(rec, plots(first, runs), first.estimators, True, BOUNDS, TL)
+    metric_plots.summary(rec, table_md + "\n\n" + how_to_read(first, len(runs)))
 
 
 def how_to_read(first: RunResult, runs: int) -> str:

@@ -172,18 +172,15 @@ def record_run(rec: rr.RecordingStream, first: RunResult, zero: RunSummary) -> N
             draw.covariance_ellipses(rec, f"{base}/ellipse", TL, t, est.position, est.covariance, rgb)
         if est.forecast is not None:
             draw.polylines(rec, f"{base}/forecast", TL, t, est.forecast, rgb, -0.75 * x)
-    draw.plot_series(rec, TL, plots(first, [zero]), first.estimators,
-                     lambda o: not o.startswith(("/monte_carlo", "/metrics")), SERIES)
+    metric_plots.draw_curves(rec, plots(first, [zero]), first.estimators, False, SERIES, TL)
     if first.images is not None:
         record_images(rec, first)
 
 
 def record_runs(rec: rr.RecordingStream, first: RunResult, runs: list[RunSummary], table_md: str) -> None:
     """Log the curves over all runs and the results table with how to read the recording."""
-    draw.plot_series(rec, TL, plots(first, runs), first.estimators,
-                     lambda o: o.startswith(("/monte_carlo", "/metrics")), SERIES)
-    text = table_md + "\n\n" + how_to_read(first, len(runs))
-    rec.log("/summary", rr.TextDocument(text, media_type=rr.MediaType.MARKDOWN), static=True)
+    metric_plots.draw_curves(rec, plots(first, runs), first.estimators, True, SERIES, TL)
+    metric_plots.summary(rec, table_md + "\n\n" + how_to_read(first, len(runs)))
 
 
 def how_to_read(first: RunResult, runs: int) -> str:
