@@ -33,7 +33,7 @@ def execute(exp, scenario: str | None, out: Path | None, force: bool, metrics: P
             serve: bool = False, jobs: int | None = None, estimators: str | None = None, quiet: bool = False,
             extras: dict | None = None, connect: str | None = None, **overrides):
     """What every experiment command does, through the API; prints the table and the outputs.
-    Exits with :data:`FAILED` (after writing everything) if an estimator failed."""
+    Exits with :data:`FAILED` (after writing everything) if an estimator or a metric failed."""
     from workbench import api
 
     bar, task = _progress()
@@ -59,11 +59,15 @@ def execute(exp, scenario: str | None, out: Path | None, force: bool, metrics: P
         typer.echo(res.table + "\n\n" + "\n".join(lines))
     for name, why in res.failures.items():
         typer.echo(f"error: estimator {name!r} failed: {why}", err=True)
+    broken = res.metrics.get("metric_failures", {})
+    for where, why in dict.fromkeys(broken.items()):
+        estimator, _, metric = where.rpartition("/")
+        typer.echo(f"error: metric {metric!r} failed on {estimator!r}: {why}", err=True)
     if serve and res.live is not None:
         typer.echo(f"serving the stream at rerun+http://127.0.0.1:{VIEWER_PORT}/proxy "
                    f"(rerun --connect rerun+http://127.0.0.1:{VIEWER_PORT}/proxy); Ctrl-C to stop", err=True)
         _until_interrupted()
-    if res.failures:
+    if res.failures or broken:
         raise typer.Exit(FAILED)
     return res
 

@@ -313,7 +313,10 @@ class Experiment:
         metrics = self.metrics(cfg)
         found = figures.statistics(metrics, [s.metrics for s in summaries], self.settle(cfg))
         figures.merge(stats, metrics, found, len(summaries))
-        failed = {k: f"{why} (run {s.run})" for s in summaries for k, why in s.metric_failures.items()}
+        failed: dict[str, str] = {}
+        for s in summaries:
+            for k, why in s.metric_failures.items():
+                failed.setdefault(k, f"{why} (run {s.run})")
         if failed:
             stats["metric_failures"] = failed
         self.role("evaluate").statistics(cfg, summaries, stats)
