@@ -11,7 +11,7 @@ import rerun.blueprint as rrb
 from launcher import wb
 
 from workbench import experiments
-from workbench.experiments import plugins
+from workbench.experiments import estimator as plugins
 from workbench.recording import draw, layout
 from workbench.tools import browser
 

@@ -16,7 +16,8 @@ from launcher import wb
 
 import workbench
 from workbench.errors import WorkbenchError
-from workbench.experiments import get, plugins
+from workbench.experiments import estimator as plugins
+from workbench.experiments import get
 from workbench.experiments.sea.estimate import Estimate as SeaEstimate
 from workbench.recording import readback
 
