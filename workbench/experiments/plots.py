@@ -94,3 +94,13 @@ def summary(rec: Any, text: str) -> None:
     import rerun as rr
 
     rec.log("/summary", rr.TextDocument(text, media_type=rr.MediaType.MARKDOWN), static=True)
+
+
+def how_to_read(first: Any, truth: str) -> list[str]:
+    """The head of a recording's "how to read" note: run 0 drawn in full, the time line, and each
+    estimator's colour in words (``truth``: how the truth is drawn)."""
+    from workbench.recording import draw
+
+    shown = {n: e for n, e in first.estimators.items() if n in first.estimates}
+    return ["**How to read this recording** (run 0 drawn in full; scrub the `time` timeline, seconds)", "",
+            f"- colours: {draw.colour_key(shown)}; {truth}."]

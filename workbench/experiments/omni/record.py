@@ -267,11 +267,8 @@ def record_runs(rec: rr.RecordingStream, first: RunResult, runs: list[RunSummary
 def how_to_read(first: RunResult, runs: int) -> str:
     """The note under the results table: what each view shows and how to read it."""
     one, many = metrics.chi2_band(3, 1), metrics.chi2_band(3, runs)
-    shown = {n: e for n, e in first.estimators.items() if n in first.estimates}
     lines = [
-        "**How to read this recording** (run 0 drawn in full; scrub the `time` timeline, seconds)",
-        "",
-        f"- colours: {draw.colour_key(shown)}; the truth white.",
+        *metric_plots.how_to_read(first, "the truth white"),
         "- maps, top-down (x east, y north, m), one per estimator, on the same world: walls grey, the true "
                 "landmarks and path white; the estimator's path, pose and 95 % pose ellipse, its landmarks with their "
         "95 % ellipses (iSAM2's path is what it knew at each step; its whole trajectory as it holds it at the "

@@ -186,11 +186,8 @@ def record_runs(rec: rr.RecordingStream, first: RunResult, runs: list[RunSummary
 def how_to_read(first: RunResult, runs: int) -> str:
     """The note under the results table: what each view shows and how to read it."""
     lo, hi = metrics.chi2_band(4, runs)
-    shown = {n: e for n, e in first.estimators.items() if n in first.estimates}
     lines = [
-        "**How to read this recording** (run 0 drawn in full; scrub the `time` timeline, seconds)",
-        "",
-        f"- colours: {draw.colour_key(shown)}; truth white on the map, black in the plots; measured angles grey.",
+        *metric_plots.how_to_read(first, "truth white on the map, black in the plots; measured angles grey"),
         "- map, top-down (x east, y north, m): the observer's path and camera (blue), the object (white), "
         "the line of sight (yellow, while the object is seen); each estimator's track, its current position, "
         "its 95 % covariance ellipse and its l-step forecast.",
