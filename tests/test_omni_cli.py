@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 from launcher import DATA, wb
 
+import workbench
 from workbench.experiments.omni import tum
 from workbench.recording import readback
 
@@ -127,6 +128,33 @@ def test_mrclam_folder_runs_every_estimator(tmp_path):
     stats = json.loads(m.read_text())
     assert set(stats["estimators"]) == set(ALL)
     assert stats["estimators"]["odometry"]["rmse"]["position"] < 0.05  # the odometry is exact here
+
+
+def test_a_log_without_its_truth_runs(tmp_path):
+    """The tiny robot starts at the origin, so its log without the ground-truth file (or the
+    landmark file) gives the very same estimates: the truth only scores them. Without it the
+    table has no pose errors, the map is scored against the landmark file alone, and the run
+    says what it lacked."""
+    d = _mrclam_copy(tmp_path)
+    with_truth = workbench.run("omni", scenario="mrclam", data=d, estimators="odometry,ekf,gtsam-batch")
+    (d / "Robot1_Groundtruth.dat").unlink()
+    out, m = tmp_path / "n.rrd", tmp_path / "n.json"
+    r = wb("omni", "--scenario", "mrclam", "--data", str(d), "--estimators", "odometry,ekf,gtsam-batch",
+           "--out", str(out), "--metrics", str(m))
+    assert r.returncode == 0, r.stderr
+    assert "warning: Robot1_Groundtruth.dat: absent" in r.stderr and "Traceback" not in r.stderr
+    stats = json.loads(m.read_text())
+    assert stats["data_repairs"]["no_ground_truth"] == 1
+    for name, e in stats["estimators"].items():
+        assert e["position_rmse"] is None and e["anees"] is None and "position_bound" not in e, name
+    without = workbench.run("omni", scenario="mrclam", data=d, estimators="odometry,ekf,gtsam-batch")
+    assert np.isnan(without.data.truth).all() and np.array_equal(without.data.start, np.zeros(3))
+    for name, est in with_truth.estimates.items():
+        assert np.allclose(without.estimates[name].pose, est.pose, atol=1e-9), name
+    (d / "Landmark_Groundtruth.dat").unlink()
+    r = wb("omni", "--scenario", "mrclam", "--data", str(d), "--estimators", "odometry,gtsam-batch",
+           "--out", str(tmp_path / "m.rrd"))
+    assert r.returncode == 0 and "Landmark_Groundtruth.dat: absent" in r.stderr, r.stderr
 
 
 def test_a_gap_in_the_commands_is_read_as_a_switch_and_shown(tmp_path):

@@ -62,9 +62,9 @@ def pose_nees(err: np.ndarray, cov: np.ndarray) -> np.ndarray:
 def bounds(data: OmniData, cfg: OmniConfig, keyframes: graph.Keyframes | None = None) -> dict:
     """The run's Cramér-Rao variances (:func:`.bounds.variances`): per delay (0 filtering, inf
     smoothing) position and heading at every grid step, and the map; none where the bearings come
-    from images (their noise is the image stage's, not the model's)."""
-    if cfg.from_images:
-        return {}
+    from images (their noise is the image stage's, not the model's) or the log has no truth."""
+    if cfg.from_images or not np.isfinite(data.truth[data.grid]).all(axis=1).any():
+        return {}  # (a log without its truth: the bound is at the truth)
     kf = keyframes if keyframes is not None else graph.keyframes(data, cfg)
     return omni_bounds.variances(data, kf, {0.0, float("inf")})
 

@@ -41,6 +41,10 @@ Readings taken here (say so where a caller might assume otherwise):
   is later (in MRCLAM 6 the Vicon starts about 12 s before the odometry and the robots stand
   still meanwhile). It ends at the last odometry time within the ground truth's span (robot
   1's truth ends about two minutes before its odometry).
+* The truth is optional, as on a researcher's own log: without ``Robot{N}_Groundtruth.dat``
+  the log runs over its whole odometry (the first pose is then the origin); without
+  ``Landmark_Groundtruth.dat`` every subject ``Barcodes.dat`` names that is not a robot is a
+  landmark of unknown place. Each absence is said in a warning and counted in the repairs.
 """
 
 from __future__ import annotations
@@ -112,6 +116,8 @@ class MrclamLog:
         span or inside a gap between samples longer than ``max_gap`` seconds (a time exactly on
         a sample is always valid).
         """
+        if len(self.truth_t) == 0:  # a log without its truth
+            return np.full((np.size(t), 3), np.nan)
         return interpolate_pose(self.truth_t, self.truth_pose, t, max_gap)
 
     def landmark_array(self) -> tuple[np.ndarray, np.ndarray]:
@@ -147,14 +153,14 @@ def interpolate_pose(times: np.ndarray, poses: np.ndarray, t: np.ndarray | float
 
 
 def robots_in(folder: Path) -> list[int]:
-    """Robot numbers whose odometry, measurement and ground-truth files are all in ``folder``."""
+    """Robot numbers whose odometry and measurement files are in ``folder`` (the ground truth is optional)."""
     folder = _check_folder(folder)
     found: dict[int, set[str]] = {}
     for path in folder.iterdir():
         m = _ROBOT_FILE.match(path.name)
         if m and path.is_file():
             found.setdefault(int(m.group(1)), set()).add(m.group(2))
-    return sorted(n for n, kinds in found.items() if len(kinds) == len(_KINDS))
+    return sorted(n for n, kinds in found.items() if {"Odometry", "Measurement"} <= kinds)
 
 
 def load(folder: Path, robot: int, t_start: float | None = None, t_end: float | None = None) -> MrclamLog:
@@ -180,21 +186,34 @@ def load(folder: Path, robot: int, t_start: float | None = None, t_end: float | 
         robots = robots_in(folder)
         listed = ", ".join(map(str, robots)) if robots else "none"
         raise WorkbenchError(f"unknown robot {robot} in {folder}: available robots are {listed}")
+    repairs: dict[str, int] = {}
+    has_truth = files["groundtruth"].exists()
+    if not has_truth:
+        del files["groundtruth"]
+        repairs["no_ground_truth"] = 1
+        _say(folder / f"Robot{robot}_Groundtruth.dat", "absent: the run goes without the robot's truth (the first "
+                                                         "pose is the origin; no errors, bounds or NEES)")
     for path in files.values():
         _check_file(path)
 
-    landmarks = _read_landmarks(folder / "Landmark_Groundtruth.dat")
     subject_of = _read_barcodes(folder / "Barcodes.dat")
+    if (folder / "Landmark_Groundtruth.dat").exists():
+        landmarks = _read_landmarks(folder / "Landmark_Groundtruth.dat")
+    else:
+        landmarks = {s: np.full(2, np.nan) for s in sorted(set(subject_of.values()) - ROBOT_SUBJECTS)}
+        repairs["no_landmark_truth"] = 1
+        _say(folder / "Landmark_Groundtruth.dat", f"absent: the {len(landmarks)} subjects of Barcodes.dat that are not "
+                                                  "robots are landmarks of unknown place (no map error)")
 
-    repairs: dict[str, int] = {}
     raw = {"odometry": _read_table(files["odometry"], 3, repairs=repairs),
-           "measurement": _read_table(files["measurement"], 4, int_cols=(1,), repairs=repairs),
-           "groundtruth": _read_table(files["groundtruth"], 4, repairs=repairs)}
+           "measurement": _read_table(files["measurement"], 4, int_cols=(1,), repairs=repairs)}
+    if has_truth:
+        raw["groundtruth"] = _read_table(files["groundtruth"], 4, repairs=repairs)
     for kind, table in raw.items():  # on the file's rows, before any reordering: the lines named are the file's
         _check_ranges(files[kind], table, SANE[kind])
     odom = _in_order(files["odometry"], raw["odometry"], repairs)
     meas = _in_order(files["measurement"], raw["measurement"], repairs)
-    truth = _in_order(files["groundtruth"], raw["groundtruth"], repairs)
+    truth = _in_order(files["groundtruth"], raw["groundtruth"], repairs) if has_truth else np.zeros((0, 4))
     gaps = int(np.sum(np.diff(odom[:, 0]) > GAP))
     if gaps:
         repairs["odometry_gaps"] = gaps
@@ -202,8 +221,10 @@ def load(folder: Path, robot: int, t_start: float | None = None, t_end: float | 
         _say(files["odometry"], f"{gaps} gap(s) over {GAP:g} s between rows (longest {longest:.2f} s); "
                                 "the next command is read as taking over at an unknown time within each")
 
-    t0 = float(max(truth[0, 0], odom[0, 0])) if t_start is None else float(t_start)
-    if t_end is None:
+    t0 = float(max(truth[0, 0] if has_truth else -np.inf, odom[0, 0])) if t_start is None else float(t_start)
+    if t_end is None and not has_truth:
+        t1 = float(odom[-1, 0])
+    elif t_end is None:
         within = odom[odom[:, 0] <= truth[-1, 0], 0]
         if within.size == 0:
             raise WorkbenchError(f"{files['odometry']}: no odometry within the ground truth's span "
@@ -226,7 +247,7 @@ def load(folder: Path, robot: int, t_start: float | None = None, t_end: float | 
     meas = meas[_between(meas[:, 0], t0, t1)]
     lo = max(int(np.searchsorted(truth[:, 0], t0, side="right")) - 1, 0)
     hi = int(np.searchsorted(truth[:, 0], t1, side="left")) + 1
-    truth, truth_repeat = _last_of_repeats(truth[lo:hi])
+    truth, truth_repeat = _last_of_repeats(truth[lo:hi]) if has_truth else (truth, 0)
     if truth_repeat:
         _say(files["groundtruth"], f"{truth_repeat} repeated time stamp(s): the last row of each kept")
 

@@ -152,9 +152,15 @@ def layout(first: RunResult, runs: list[RunSummary]) -> rrb.Blueprint:
 
 
 def scene(first: RunResult) -> np.ndarray:
-    """What the maps frame: the walls (the simulation) or the landmarks (MRCLAM), and the true path."""
+    """What the maps frame: the walls (the simulation) or the landmarks (MRCLAM), and the true path;
+    a log without its truth, the estimates' paths (what is not finite left out)."""
     d = first.data
-    return np.concatenate([d.walls if d.walls is not None else d.landmarks, d.truth[first.grid, :2]])
+    parts = [d.walls if d.walls is not None else d.landmarks, d.truth[first.grid, :2]]
+    if not np.isfinite(d.truth[first.grid]).any():
+        parts += [e.pose[:, :2] for e in first.estimates.values()]
+    xy = np.concatenate(parts)
+    xy = xy[np.isfinite(xy).all(axis=1)]
+    return xy if len(xy) else np.zeros((1, 2))
 
 
 def _rays(first: RunResult, pose: np.ndarray, length: float, only: np.ndarray | None = None
@@ -207,9 +213,10 @@ def record_run(rec: rr.RecordingStream, first: RunResult, zero: RunSummary) -> N
     if d.walls is not None:
         rec.log("/world/walls", rr.LineStrips3D([np.c_[d.walls, np.zeros(len(d.walls))]],
                                                 colors=[(120, 120, 120)], radii=[0.1]), static=True)
-    rec.log("/world/landmarks", rr.Points3D(np.c_[d.landmarks, np.zeros(len(d.landmarks))],
+    known = np.isfinite(d.landmarks).all(axis=1)  # (a log may not know where its landmarks are)
+    rec.log("/world/landmarks", rr.Points3D(np.c_[d.landmarks[known], np.zeros(known.sum())],
                                             colors=[draw.color("truth")], radii=[0.25],
-                                            labels=[str(i) for i in d.landmark_ids], show_labels=False),
+                                            labels=[str(i) for i in d.landmark_ids[known]], show_labels=False),
             static=True)
     # seen from above, what is higher is drawn on top: the truth, thin, over the estimate, wider
     top = views.on_top(scene(first))

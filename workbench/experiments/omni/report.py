@@ -22,13 +22,18 @@ def table(stats: dict) -> str:
     for name, e in stats["estimators"].items():
         bits = [f"position rmse {_f(e.get('position_rmse_whole_run'))} m, max {_f(e.get('position_max_whole_run'))} m",
                 f"heading rmse {_f(e.get('heading_rmse_whole_run'))} deg, max {_f(e.get('heading_max_whole_run'))} deg"]
-        if "aligned_position_rmse_whole_run" in e:
+        if e.get("position_rmse_whole_run") is None:  # a log without its truth
+            bits = ["no truth of the robot: no pose errors"]
+            if e.get("aligned_map_rmse") is not None:
+                bits.append(f"the map {_f(e['aligned_map_rmse'])} m off the landmark survey after the best rigid "
+                            "alignment")
+        if e.get("aligned_position_rmse_whole_run") is not None:
             bits.append(f"after the best rigid alignment (evo -a) position rmse "
                         f"{_f(e['aligned_position_rmse_whole_run'])} m, heading rmse "
                         f"{_f(e.get('aligned_heading_rmse_whole_run'))} deg (the alignment: "
                         f"{_f(e.get('alignment_rotation'))} deg, {_f(e.get('alignment_translation'))} m, "
                         "rms over runs)")
-        if "smoothed_position_rmse_whole_run" in e:
+        if e.get("smoothed_position_rmse_whole_run") is not None:
             bits.append(f"its whole trajectory as held at the end (smoothed) position rmse "
                         f"{_f(e['smoothed_position_rmse_whole_run'])} m, heading rmse "
                         f"{_f(e.get('smoothed_heading_rmse_whole_run'))} deg")
