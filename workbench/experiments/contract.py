@@ -47,7 +47,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from workbench.errors import WorkbenchError
-from workbench.experiments import figures, markdown, metric
+from workbench.experiments import figures, markdown, metric, truthfree
 from workbench.experiments.estimator import Estimator, RunContext, estimate_all, resolve
 from workbench.experiments.settings import Option, Scenario, config_json
 
@@ -269,8 +269,9 @@ class Experiment:
 
     # --- evaluate: the metrics, and the experiment's own figures
     def metrics(self, cfg: Any = None) -> list[metric.Metric]:
-        """The metrics of a run of ``cfg``: the package's ``metrics.METRICS``, every installed
-        metric plugin that applies, and the config's ``add_metrics`` (specs)."""
+        """The metrics of a run of ``cfg``: the package's ``metrics.METRICS``, the truth-free ones
+        every experiment has (:mod:`.truthfree`), every installed metric plugin that applies, and
+        the config's ``add_metrics`` (specs)."""
         extra = tuple(getattr(cfg, "add_metrics", ()) or ()) if cfg is not None else ()
         return list(_metrics(self, extra))
 
@@ -369,7 +370,9 @@ class Experiment:
 
 @functools.lru_cache(maxsize=64)
 def _metrics(exp: Experiment, extra: tuple) -> tuple[metric.Metric, ...]:
-    return tuple(metric.select(exp._optional("metrics", "METRICS", ()), exp.name, extra))
+    own = exp._optional("metrics", "METRICS", ())
+    common = tuple(m for m in truthfree.METRICS if m.name not in {x.name for x in own})
+    return tuple(metric.select((*own, *common), exp.name, extra))
 
 
 def _copy(stats: dict) -> dict:

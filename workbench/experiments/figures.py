@@ -6,7 +6,10 @@ Keys of the metrics JSON per estimator and metric ``m``: ``m`` (the figure over 
 ``m_std`` (the spread of the runs' figures, ``across="mean"``), ``m_band`` (the 95 % chi-square
 band of the figure, where it has a dimension), ``m_inside_band`` (the share of scored steps where
 the mean over runs is inside that band), ``m_whole_run`` (the figure over every step, where the
-experiment scores from a settling time), ``m_se`` (an efficiency's Monte Carlo standard error).
+experiment scores from a settling time), ``m_se`` (an efficiency's Monte Carlo standard error),
+``m_consistent`` (the figure passes its test: inside its band, or at most its ``at_most``); and
+the verdicts ``consistent_without_truth`` (every truth-free test passes) and
+``consistent_with_truth`` (every test that reads the truth).
 """
 
 from __future__ import annotations
@@ -85,16 +88,32 @@ def statistics(metrics: Iterable[Metric], runs: list[Mapping[str, Mapping[str, V
             timed = all(v.t is not None for v in per_run)
             if settle is not None and m.window and timed:
                 entry[f"{m.name}_whole_run"] = _over_runs(m, per_run, None)[0]
-            if m.dimension:
-                lo, hi = chi2_band(m.dimension, len(per_run))
+            dof = m.dimension or (per_run[0].dof if m.dimension == 0 else None)
+            if dof:
+                # the band of the figure: a mean over the runs' (correlated) steps counts the runs; over
+                # independent samples (a consistent filter's NIS: Bar-Shalom 5.4.2) every sample
+                n = (sum(int(np.isfinite(counted(v, settle, m)).sum()) for v in per_run) if m.independent
+                     else len(per_run))
+                lo, hi = chi2_band(dof, max(n, 1))
                 entry[f"{m.name}_band"] = [lo, hi]
+                if entry[m.name] is not None:
+                    entry[f"{m.name}_consistent"] = bool(lo <= entry[m.name] <= hi)
                 curve = _curve(m, per_run)
-                if curve is not None:
+                if curve is not None:  # each step's mean over the runs, against the band for that many
                     t, c = curve
+                    lo, hi = chi2_band(dof, len(per_run))
                     keep = t >= settle if settle is not None and m.window else np.ones(len(t), bool)
                     keep = keep if keep.any() else np.ones(len(t), bool)
                     inside = (c[keep] >= lo) & (c[keep] <= hi)
                     entry[f"{m.name}_inside_band"] = float(np.mean(inside)) if np.isfinite(c[keep]).any() else None
+        for m in metrics:
+            if m.at_most is not None and entry.get(m.name) is not None:
+                entry[f"{m.name}_consistent"] = bool(entry[m.name] <= m.at_most)
+        for free, key in ((True, "consistent_without_truth"), (False, "consistent_with_truth")):
+            tests = [entry[f"{m.name}_consistent"] for m in metrics
+                     if m.truth_free == free and entry.get(f"{m.name}_consistent") is not None]
+            if tests:
+                entry[key] = all(tests)
         for m in metrics:
             if m.efficiency is None:
                 continue

@@ -123,4 +123,35 @@ def default_table(stats: Mapping, metrics: Sequence[Any], columns: tuple[str, ..
              for lo, hi in [band]]
     if bands:
         lines += ["", "; ".join(bands)]
-    return "\n".join(lines + [""] + bounds_table(stats, bounds))
+    return "\n".join(lines + [""] + verdicts(stats) + bounds_table(stats, bounds))
+
+
+def verdicts(stats: Mapping) -> list[str]:
+    """Each estimator's consistency, without the truth (its innovations' NIS and whiteness, its
+    disagreement with the smoother) and with it (its NEES): each test's figure against its band or
+    limit, and the verdict (``consistent_without_truth``, ``consistent_with_truth``)."""
+    described = stats.get("metric_table", {})
+    lines = []
+    for name, e in stats["estimators"].items():
+        parts = []
+        for free, key, what in ((True, "consistent_without_truth", "without truth"),
+                                (False, "consistent_with_truth", "with truth")):
+            if e.get(key) is None:
+                continue
+            tests = [_test(m, e) for m, d in described.items()
+                     if d.get("truth_free", False) == free and e.get(f"{m}_consistent") is not None]
+            parts.append(f"{what} {'consistent' if e[key] else '**not consistent**'} ({'; '.join(tests)})")
+        if parts:
+            lines.append(f"- {name}: " + "; ".join(parts))
+    if not lines:
+        return []
+    return ["**Consistency**, each test at 95 %: without truth, the filters' innovations (NIS, whiteness) and "
+            "each causal estimator against the smoother; with truth, the NEES", "", *lines, ""]
+
+
+def _test(metric: str, e: Mapping) -> str:
+    value, band = e[metric], e.get(f"{metric}_band")
+    if band is not None:
+        where = "in" if band[0] <= value <= band[1] else ("above" if value > band[1] else "below")
+        return f"{metric} {value:.3g} {where} {band[0]:.3g}-{band[1]:.3g}"
+    return f"{metric} {value:.3g}" + (" within its limit" if e[f"{metric}_consistent"] else " over its limit")

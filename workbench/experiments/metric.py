@@ -46,10 +46,13 @@ ACROSS = ("pooled", "mean", "sum")
 @dataclass
 class Values:
     """A metric's samples for one estimate on one run: ``values (n,)`` and, for a time series,
-    their times ``t (n,)`` (seconds of the run); NaN where there is none."""
+    their times ``t (n,)`` (seconds of the run); NaN where there is none. ``dof``: each sample's
+    chi-square degrees of freedom where they are the estimate's to say (a NIS: the measurement's
+    dimension), beside a metric with ``dimension=0``."""
 
     values: np.ndarray
     t: np.ndarray | None = None
+    dof: int | None = None  # the chi-square degrees of freedom of each sample, where the metric leaves it open
 
     def __post_init__(self) -> None:
         self.values = np.atleast_1d(np.asarray(self.values, float)).ravel()
@@ -91,8 +94,11 @@ class Metric:
     description: str
     reduce: str = "rms"
     across: str = "pooled"
-    dimension: int | None = None   # chi-square degrees of freedom of each sample (NEES, NIS)
+    dimension: int | None = None   # chi-square degrees of freedom of each sample (NEES, NIS); 0: the samples say
     window: bool = True            # the run's figure counts only the steps after the experiment's settling time
+    independent: bool = False      # its samples are independent (a consistent filter's NIS): its band is for them all
+    at_most: float | None = None   # a figure at most this passes its test (the whiteness test's share of lags)
+    truth_free: bool = False       # it reads no truth: it judges an estimator on a log without one
     efficiency: tuple | None = None  # (error, bound[, scale]): the RMS of one's samples (times scale) over the other's
     label: str = ""                # a short column title, with its unit (default: the name and the unit)
     fmt: str = ".2f"               # how the table writes it
@@ -131,8 +137,13 @@ class Metric:
         if self.dimension:
             out["dimension"] = self.dimension
             out["band"] = list(chi2_band(self.dimension, runs))
+        elif self.dimension == 0:
+            out["dimension"] = "each estimate's own (its samples' dof)"
         if self.efficiency:
             out["efficiency"] = list(self.efficiency[:2])
+        if self.at_most is not None:
+            out["at_most"] = self.at_most
+        out["truth_free"] = self.truth_free
         return out
 
     def __reduce__(self):
@@ -142,14 +153,17 @@ class Metric:
 
 
 def metric(*, name: str | None = None, unit: str = "", description: str | None = None, reduce: str = "rms",
-           across: str = "pooled", dimension: int | None = None, window: bool = True, label: str = "",
-           fmt: str = ".2f", experiments: Iterable[str] = ()) -> Callable:
+           across: str = "pooled", dimension: int | None = None, window: bool = True, independent: bool = False,
+           at_most: float | None = None, truth_free: bool = False, label: str = "", fmt: str = ".2f",
+           experiments: Iterable[str] = ()) -> Callable:
     """Decorate a plugin metric function with how its samples read and combine (the defaults: an
     error in ``unit`` whose figure is its RMS over the steps and the runs)."""
 
     def mark(fn: Callable) -> Callable:
         fn.__workbench_metric__ = {"name": name, "unit": unit, "description": description, "reduce": reduce,
-                                   "across": across, "dimension": dimension, "window": window, "label": label,
+                                   "across": across, "dimension": dimension, "window": window,
+                                   "independent": independent, "at_most": at_most, "truth_free": truth_free,
+                                   "label": label,
                                    "fmt": fmt, "experiments": tuple(experiments)}
         return fn
 

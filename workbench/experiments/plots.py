@@ -32,11 +32,17 @@ def over_runs(m: metric.Metric, summaries: Sequence[Any], names: Iterable[str] |
     if not series:
         return None
     c = Curves(t, series, m.unit)
-    if m.dimension:
-        lo, hi = chi2_band(m.dimension, len(summaries))
+    dof = m.dimension or (_dof(m, summaries) if m.dimension == 0 else None)
+    if dof:
+        lo, hi = chi2_band(dof, len(summaries))
         c.series.update(band_lo=np.full_like(t, lo), band_hi=np.full_like(t, hi))
         c.fixed, c.labels = tuple(BAND), dict(BAND)
     return c
+
+
+def _dof(m: metric.Metric, summaries: Sequence[Any]) -> int | None:
+    """The samples' own degrees of freedom (the first estimate's that says them)."""
+    return next((row[m.name].dof for s in summaries for row in s.metrics.values() if m.name in row), None)
 
 
 def by_name(metrics: Iterable[metric.Metric]) -> dict[str, metric.Metric]:
@@ -61,7 +67,7 @@ def titles(metrics: Mapping[str, metric.Metric], curves: Mapping[str, Curves]) -
     out = {}
     for origin in curves:
         m = metrics[origin.rsplit("/", 1)[1]]
-        band = ", grey: 95 % band" if m.dimension else ""
+        band = ", grey: 95 % band" if m.dimension is not None else ""
         out[origin] = f"{m.name} over runs" + (f" ({m.unit})" if m.unit else "") + band
     return out
 

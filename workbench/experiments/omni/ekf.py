@@ -47,6 +47,7 @@ from collections.abc import Callable
 import numpy as np
 
 from workbench.estimation.angles import wrap
+from workbench.estimation.consistency import Innovations
 from workbench.estimation.metrics import chi2_quantile
 from workbench.experiments.omni import triangulation
 from workbench.experiments.omni.config import OmniConfig
@@ -76,6 +77,7 @@ class BearingEkf:
         self.second_order = cfg.ekf_second_order
         self.failures = 0
         self.gated: list[int] = []  # the bearings (dataset indices) the NIS gate left out
+        self.innovations: list[tuple[float, float, float]] = []  # (t, innovation, variance), NaN: left out
         self.attempts: list = []
 
     # --- (7)-(8) ---------------------------------------------------------------------------
@@ -126,9 +128,15 @@ class BearingEkf:
         BC = B @ C
         return 0.5 * np.trace(BC, axis1=1, axis2=2), 0.5 * np.einsum("kij,kji->k", BC, BC)
 
-    def update(self, lms: np.ndarray, bearings: np.ndarray, index: np.ndarray | None = None) -> None:
+    def update(self, lms: np.ndarray, bearings: np.ndarray, index: np.ndarray | None = None,
+               t: float = float("nan")) -> None:
         """Update with bearings of initialised landmarks, all at once (``index``: their indices in
-        the dataset, to note those the NIS gate leaves out).
+        the dataset, to note those the NIS gate leaves out; ``t``: their time, for the innovations).
+
+        The innovations are noted one bearing at a time, as a sequential update would see them:
+        with ``S = L L'`` (Cholesky), bearing ``i``'s innovation given the epoch's earlier ones is
+        ``L_ii w_i`` with variance ``L_ii^2``, ``w = L^-1 nu``; their NIS are independent chi-square
+        of one degree each and their log-likelihoods sum to the joint one (:mod:`.truthfree`).
 
         With ``ekf_second_order`` each bearing's innovation gets the second-order terms of
         (9): its mean shifts by ``tr(B C) / 2`` and its variance grows by ``tr(B C B C) / 2``
@@ -153,15 +161,19 @@ class BearingEkf:
             keep = nu**2 / np.diag(S) <= self.gate
             if not keep.all():
                 self.gated.extend(int(i) for i in index[~keep])
+                self.innovations.extend((t, np.nan, np.nan) for _ in range(int((~keep).sum())))
                 H, nu, PH = H[keep], nu[keep], PH[:, keep]
                 S = S[np.ix_(keep, keep)]
                 if len(nu) == 0:
                     return
         try:
             K = np.linalg.solve(S, PH.T).T
+            L = np.linalg.cholesky(S)
         except np.linalg.LinAlgError:
             self.failures += 1
             return
+        seq, w = np.diag(L), np.linalg.solve(L, nu)
+        self.innovations.extend((t, float(a * b), float(a * a)) for a, b in zip(seq, w, strict=True))
         x = self.x + K @ nu
         P = self.P - K @ S @ K.T
         if not (np.isfinite(x).all() and np.isfinite(P).all()):
@@ -317,7 +329,7 @@ def run(data: OmniData, cfg: OmniConfig, augmentation: str, name: str, trace: bo
             last = step
         lms, bearings = data.meas_lm[idx], data.meas_bearing[idx]
         known = f.slot[lms] >= 0
-        f.update(lms[known], bearings[known], idx[known])
+        f.update(lms[known], bearings[known], idx[known], float(data.t[step]))
         now = data.t[step]
         for lm, b in zip(lms[~known], bearings[~known], strict=True):
             lm = int(lm)
@@ -339,9 +351,10 @@ def run(data: OmniData, cfg: OmniConfig, augmentation: str, name: str, trace: bo
                     map_cov[e, on, a, b] = f.P[o + a, o + b]
     if K > last:
         poses[last + 1:], covs[last + 1:] = f.predict(*data.odometry(last))
+    innov = np.array(f.innovations, float).reshape(-1, 3)
     return SlamEstimate(name, np.arange(K + 1), poses, covs, map_steps, map_mean, map_cov,
                         f.first_seen, f.init_step, failures=f.failures, gated_bearings=np.array(f.gated, int),
-                        attempts=f.attempts)
+                        attempts=f.attempts, innovations=Innovations.scalar(*innov.T))
 
 
 def odometry(data: OmniData, name: str = "odometry") -> SlamEstimate:

@@ -14,6 +14,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from workbench.estimation.consistency import Innovations
+
 
 @dataclass
 class SlamEstimate:
@@ -27,8 +29,11 @@ class SlamEstimate:
     never). ``gated_bearings``: the bearings (indices into the dataset's) a chi-square gate
     left out (misreads, outliers; -1 for a bearing not the dataset's, the image stage's). ``attempts``
     (recorded run only): ``(step, landmark, sigma images (2n+1, 2), accepted)`` of every
-    initialisation try. ``smoothed (E, 3)``: a smoother's whole trajectory as it holds it at the
-    end (iSAM2's final estimate, at ``steps``), beside ``pose``, what it knew at each step.
+    initialisation try. ``innovations``: a filter's bearing innovations and their variances
+    (:class:`~workbench.estimation.consistency.Innovations`, one row a bearing it was handed: the
+    truth-free NIS, whiteness and likelihood read them). ``smoothed (E, 3)``: a smoother's whole
+    trajectory as it holds it at the end (iSAM2's final estimate, at ``steps``), beside ``pose``,
+    what it knew at each step.
     """
 
     name: str = ""
@@ -45,6 +50,7 @@ class SlamEstimate:
     gated_bearings: np.ndarray | None = None  # indices of the bearings a gate left out
     attempts: list = field(default_factory=list)
     smoothed: np.ndarray | None = None  # (E, 3) the whole trajectory as held at the end
+    innovations: Innovations | None = None  # a filter's innovations of the bearings, for its truth-free checks
 
     @property
     def gated(self) -> int:

@@ -11,7 +11,9 @@ import math
 
 import numpy as np
 
+from workbench.estimation import consistency
 from workbench.estimation.alignment import umeyama
+from workbench.experiments import truthfree
 from workbench.experiments.metric import Metric, MetricContext, Values
 from workbench.experiments.omni import evaluate
 from workbench.experiments.omni.estimate import SlamEstimate
@@ -105,6 +107,17 @@ def sigma_heading(data: OmniData, est: SlamEstimate, ctx: MetricContext) -> Valu
 def nees(data: OmniData, est: SlamEstimate, ctx: MetricContext) -> Values:
     """The pose's NEES (3 dof) at each grid step."""
     return Values(evaluate.pose_nees(_errors(data, est, ctx), _pose(data, est, ctx)[1]), _t(data))
+
+
+def disagreement(data: OmniData, est: SlamEstimate, ctx: MetricContext) -> Values | None:
+    """A causal estimator's pose against the run's smoother's (:func:`.truthfree.reference`) at
+    each grid step, normalised by the difference of their covariances (3 dof; truth-free)."""
+    ref = truthfree.reference(ctx)
+    if ref is None:
+        return None
+    pose, cov = _pose(data, est, ctx)
+    spose, scov = evaluate.on_grid(ctx.estimates[ref], data.grid)
+    return Values(consistency.disagreement(pose, cov, spose, scov, angles=(2,)), _t(data))
 
 
 def coverage(data: OmniData, est: SlamEstimate, ctx: MetricContext) -> Values:
@@ -220,6 +233,9 @@ METRICS: tuple[Metric, ...] = (
            label="sigma head max deg"),
     Metric("anees", nees, "", "the pose's NEES (3 dof), mean over the steps and runs", reduce="mean", dimension=3,
            label="ANEES"),
+    Metric("disagreement", disagreement, "", "a causal estimator's pose against the run's smoother's, normalised "
+           "by the difference of their covariances (3 dof; truth-free), mean", reduce="mean", dimension=3,
+           truth_free=True, label="vs smoother"),
     Metric("landmarks", landmarks, "", "landmarks in the final map, mean over runs", reduce="sum", across="mean",
            fmt=".1f"),
     Metric("init_seconds_mean", init_delay, "s", "mean delay from a landmark's first sighting to its initialisation",

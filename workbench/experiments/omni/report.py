@@ -47,7 +47,7 @@ def table(stats: dict) -> str:
     if stats.get("data_repairs"):
         lines += ["", "Reading the log: " + ", ".join(f"{k.replace('_', ' ')} {v}"
                                                       for k, v in stats["data_repairs"].items())]
-    lines += [""] + markdown.bounds_table(stats, BOUNDS)
+    lines += [""] + markdown.verdicts(stats) + markdown.bounds_table(stats, BOUNDS)
     im = stats.get("images")
     if im:
         def pct(x: float | None) -> str:

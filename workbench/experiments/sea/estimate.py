@@ -16,6 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from workbench.estimation.angles import wrap
+from workbench.estimation.consistency import Innovations
 from workbench.experiments.sea import geometry
 from workbench.experiments.sea.scenario import SeaData
 
@@ -35,6 +36,7 @@ class Estimate:
     velocity: np.ndarray | None = None    # (T, 2) m/s
     forecast: np.ndarray | None = None    # (T, L, 2) positions 1..L steps ahead of each step
     forecast_angles: np.ndarray | None = None  # (T, L, 2) alpha, beta ahead (algorithms 2-3)
+    innovations: Innovations | None = None     # a filter's innovations of (alpha, beta), for its truth-free checks
 
 
 def from_positions(name: str, data: SeaData, position: np.ndarray, **kw) -> Estimate:

@@ -10,8 +10,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from workbench.estimation import consistency
 from workbench.estimation import metrics as em
 from workbench.estimation.angles import to_arcmin, wrap
+from workbench.experiments import truthfree
 from workbench.experiments.metric import Metric, MetricContext, Values
 from workbench.experiments.sea import bounds as sea_bounds
 from workbench.experiments.sea.config import SeaConfig
@@ -77,6 +79,16 @@ def nees(data: SeaData, est: Estimate) -> Values | None:
     return Values(n, data.t)
 
 
+def disagreement(data: SeaData, est: Estimate, ctx: MetricContext) -> Values | None:
+    """A causal estimator's position against the run's smoother's (:func:`.truthfree.reference`)
+    at each step, normalised by the difference of their covariances (2 dof; truth-free)."""
+    ref = truthfree.reference(ctx)
+    if ref is None or est.covariance is None or ctx.estimates[ref].covariance is None:
+        return None
+    s = ctx.estimates[ref]
+    return Values(consistency.disagreement(est.position, est.covariance, s.position, s.covariance), data.t)
+
+
 def coverage(data: SeaData, est: Estimate) -> Values:
     return Values(np.isfinite(est.position[:, 0]).astype(float), data.t)
 
@@ -118,6 +130,9 @@ METRICS: tuple[Metric, ...] = (
              reduce="max", across="mean", label=f"max {q} {SHORT[q]}") for i, q in enumerate(QUANTITIES)),
     Metric("anees", nees, "", "the NEES of (x, y, vx, vy), mean over the steps and runs", reduce="mean",
            dimension=4, label="ANEES"),
+    Metric("disagreement", disagreement, "", "a causal estimator's position against the run's smoother's, "
+           "normalised by the difference of their covariances (2 dof; truth-free), mean", reduce="mean", dimension=2,
+           truth_free=True, label="vs smoother"),
     Metric("coverage", coverage, "", "share of the steps with an estimate", reduce="mean"),
     *(Metric(f"{q}_bound", _bound(q), UNITS[q], f"{q}'s Cramér-Rao bound (root of its mean variance)")
       for q in ("x", "y", "position", "range", "alpha", "beta")),

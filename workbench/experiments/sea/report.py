@@ -67,7 +67,7 @@ def table(stats: dict) -> str:
     if stats.get("data_repairs"):
         extra += ["", "Reading the data: " + ", ".join(f"{k.replace('_', ' ')} {v}"
                                                        for k, v in stats["data_repairs"].items())]
-    body = "\n".join(lines + [""] + markdown.bounds_table(stats, BOUNDS) + extra)
+    body = "\n".join(lines + [""] + markdown.verdicts(stats) + markdown.bounds_table(stats, BOUNDS) + extra)
     if "ships" in stats:
         return ships_table(stats) + "\n\nEvery ship's runs pooled:\n\n" + body
     return body

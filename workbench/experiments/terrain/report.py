@@ -35,7 +35,7 @@ def table(stats: dict) -> str:
                         f"spread against R): {stats['nodes']} nodes count as {e['effective_nodes']:.0f} independent "
                         "ones")
         lines.append(f"- {name}: " + "; ".join(bits))
-    lines += [""] + markdown.bounds_table(stats, BOUNDS)
+    lines += [""] + markdown.verdicts(stats) + markdown.bounds_table(stats, BOUNDS)
     lines += ["Errors are image II's (truth - estimate): position as a 3D norm, attitude as the norm of the "
               "three angles, means over runs; ground rmse is the halftone model's horizontal error over every pixel "
               "of image II (RMS over runs); dR = sqrt(dX^2 + dY^2).", "", PAPER_CLAIMS]

@@ -28,6 +28,7 @@ import numpy as np
 
 from workbench.estimation import kalman
 from workbench.estimation.angles import wrap
+from workbench.estimation.consistency import Innovations
 from workbench.experiments.sea import geometry
 from workbench.experiments.sea.config import SeaConfig
 from workbench.experiments.sea.estimate import Estimate, from_positions
@@ -59,6 +60,7 @@ def estimate(data: SeaData, cfg: SeaConfig) -> Estimate:
     gate = -2.0 * np.log1p(-cfg.ekf_gate)
     X = np.full((T, 4), np.nan)
     Ps = np.full((T, 4, 4), np.nan)
+    rows: list[tuple[float, np.ndarray, np.ndarray]] = []  # the innovations: (t, nu, S); NaN where gated
     x = P = None
     for k in range(T):
         if x is not None:
@@ -75,14 +77,19 @@ def estimate(data: SeaData, cfg: SeaConfig) -> Estimate:
                 R = geometry.effective_noise(x[:2], o, data.height, data.sigma_alpha,
                                              data.sigma_beta, data.sigma_observer, jacobian=J)
                 nu = np.array([wrap(data.alpha_meas[k] - h[0]), data.beta_meas[k] - h[1]])
-                S = H @ P @ H.T + R if gated else None
+                S = H @ P @ H.T + R
                 if not gated or nu @ np.linalg.solve(S, nu) <= gate:
                     x, P, _ = kalman.update(x, P, nu, H, R)
+                    rows.append((float(data.t[k]), nu, S))
+                else:
+                    rows.append((float(data.t[k]), np.full(2, np.nan), np.full((2, 2), np.nan)))
         if x is not None:
             X[k], Ps[k] = x, P
     # l-step forecasts: F^l x (positions only)
     L = cfg.horizon
     Fl = np.stack([np.linalg.matrix_power(F, l)[:2] for l in range(1, L + 1)])  # (L, 2, 4)
     forecast = np.einsum("lij,tj->tli", Fl, X)
+    innovations = Innovations(np.array([r[0] for r in rows]), np.array([r[1] for r in rows]).reshape(-1, 2),
+                              np.array([r[2] for r in rows]).reshape(-1, 2, 2))
     return from_positions("ekf", data, X[:, :2].copy(), covariance=Ps[:, :2, :2].copy(),
-                          state_cov=Ps, velocity=X[:, 2:].copy(), forecast=forecast)
+                          state_cov=Ps, velocity=X[:, 2:].copy(), forecast=forecast, innovations=innovations)

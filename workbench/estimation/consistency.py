@@ -1,0 +1,122 @@
+"""Truth-free consistency of an estimator: what its innovations, its residuals and another
+estimator say of it, with no ground truth (Bar-Shalom, Li, Kirubarajan, *Estimation with
+Applications to Tracking and Navigation*, Wiley 2001, sec. 5.4).
+
+* **NIS** ``nu' S^-1 nu`` of each innovation: chi-square with ``m`` degrees of freedom (the
+  measurement's dimension) for a consistent filter (5.4.2); its time average over ``N``
+  measurements has the band of :func:`~workbench.estimation.metrics.chi2_band` for ``N``.
+* **Whiteness** (5.4.2, (5.4.2-11)): the innovations of a consistent filter are white; the
+  normalised sample autocorrelation of the whitened innovations at lag ``l``,
+  ``rho(l) = sum nu_k nu_k+l / sqrt(sum nu_k^2 sum nu_k+l^2)``, is then about ``N(0, 1/N)``:
+  95 % of the lags within ``+-1.96 / sqrt(N)``.
+* **Likelihood**: the prediction-error decomposition of the measurements' likelihood,
+  ``-log p(z) = 1/2 sum (m log 2 pi + log det S + nu' S^-1 nu)``, a filter's own figure of how
+  well its model explains the data (the objective of tuning by the data, without truth).
+* **Disagreement with a smoother** (the reading taken here, after Bar-Shalom's 5.4 and the
+  Rauch-Tung-Striebel identity): for a consistent filter estimate ``x_f, P_f`` and a consistent
+  smoother's ``x_s, P_s`` of the same state, whose data include the filter's, the smoother's
+  error is uncorrelated with the difference (the smoother is the conditional mean given more
+  data), so ``x_f - x_s`` has covariance ``P_f - P_s`` and ``d = (x_f - x_s)' (P_f -
+  P_s)^-1 (x_f - x_s)`` is chi-square with the state's dimension. Where ``P_f - P_s`` is not
+  positive definite (the smoother claims less than the filter), ``d`` is left out.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass
+class Innovations:
+    """A filter's innovations, one row per measurement it was handed: the time ``t (M,)`` (s),
+    the innovation ``nu (M, m)`` (measurement minus its prediction; angles wrapped) and its
+    predicted covariance ``S (M, m, m)``. A NaN row is a measurement the filter left out (a gate)."""
+
+    t: np.ndarray
+    nu: np.ndarray
+    S: np.ndarray
+
+    def __post_init__(self) -> None:
+        self.t = np.asarray(self.t, float).ravel()
+        self.nu = np.asarray(self.nu, float).reshape(len(self.t), -1)
+        m = self.nu.shape[1]
+        self.S = np.asarray(self.S, float).reshape(len(self.t), m, m)
+
+    @classmethod
+    def scalar(cls, t: np.ndarray, nu: np.ndarray, var: np.ndarray) -> Innovations:
+        """Scalar measurements (a bearing): innovations and their variances."""
+        return cls(t, np.asarray(nu, float)[:, None], np.asarray(var, float)[:, None, None])
+
+    @property
+    def dimension(self) -> int:
+        return int(self.nu.shape[1])
+
+    @property
+    def used(self) -> np.ndarray:
+        """The measurements the filter used (not left out)."""
+        return np.isfinite(self.nu).all(axis=1) & np.isfinite(self.S).all(axis=(1, 2))
+
+    def nis(self) -> np.ndarray:
+        """``nu' S^-1 nu`` per measurement (NaN where left out)."""
+        out = np.full(len(self.t), np.nan)
+        ok = self.used
+        if ok.any():
+            out[ok] = np.einsum("ki,ki->k", self.nu[ok], np.linalg.solve(self.S[ok], self.nu[ok][..., None])[..., 0])
+        return out
+
+    def whitened(self) -> np.ndarray:
+        """``L^-1 nu`` with ``S = L L'`` (Cholesky), rows of the used measurements: unit
+        covariance where the filter is consistent."""
+        ok = self.used
+        L = np.linalg.cholesky(self.S[ok])
+        return np.linalg.solve(L, self.nu[ok][..., None])[..., 0]
+
+    def nll(self) -> np.ndarray:
+        """Each used measurement's term of ``-log p(z)`` (NaN where left out)."""
+        out = np.full(len(self.t), np.nan)
+        ok = self.used
+        if ok.any():
+            _, logdet = np.linalg.slogdet(self.S[ok])
+            out[ok] = 0.5 * (self.dimension * np.log(2.0 * np.pi) + logdet + self.nis()[ok])
+        return out
+
+
+def autocorrelation(white: np.ndarray, lags: int) -> np.ndarray:
+    """The normalised sample autocorrelation ``rho(l)``, ``l = 1..lags``, of a whitened sequence
+    ``(N, m)`` (each component's, pooled: the sums run over the components too)."""
+    x = np.asarray(white, float).reshape(len(white), -1)
+    out = np.full(lags, np.nan)
+    for lag in range(1, min(lags, len(x) - 1) + 1):
+        a, b = x[:-lag], x[lag:]
+        den = np.sqrt(np.sum(a * a) * np.sum(b * b))
+        out[lag - 1] = np.sum(a * b) / den if den > 0 else np.nan
+    return out
+
+
+def whiteness(innovations: Innovations, lags: int = 20) -> tuple[np.ndarray, float]:
+    """The autocorrelation of the innovations at lags ``1..lags`` and its 95 % band half-width
+    ``1.96 / sqrt(N)`` (``N`` measurements used)."""
+    white = innovations.whitened()
+    return autocorrelation(white, lags), 1.96 / np.sqrt(max(len(white), 1))
+
+
+def disagreement(x_f: np.ndarray, P_f: np.ndarray, x_s: np.ndarray, P_s: np.ndarray,
+                 angles: tuple[int, ...] = ()) -> np.ndarray:
+    """``(x_f - x_s)' (P_f - P_s)^-1 (x_f - x_s)`` per row (``(K, n)``, ``(K, n, n)``); the
+    components ``angles`` wrapped; NaN where either is missing or ``P_f - P_s`` is not positive
+    definite."""
+    d = np.asarray(x_f, float) - np.asarray(x_s, float)
+    for i in angles:
+        d[:, i] = (d[:, i] + np.pi) % (2 * np.pi) - np.pi
+    C = np.asarray(P_f, float) - np.asarray(P_s, float)
+    out = np.full(len(d), np.nan)
+    ok = np.isfinite(d).all(axis=1) & np.isfinite(C).all(axis=(1, 2))
+    if ok.any():
+        C = 0.5 * (C + np.swapaxes(C, -1, -2))
+        pd = np.zeros(len(d), bool)
+        pd[ok] = np.linalg.eigvalsh(C[ok]).min(axis=-1) > 1e-12 * np.abs(C[ok]).max(axis=(-1, -2))
+        if pd.any():
+            out[pd] = np.einsum("ki,ki->k", d[pd], np.linalg.solve(C[pd], d[pd][..., None])[..., 0])
+    return out
