@@ -26,7 +26,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from workbench import montecarlo
+from workbench import loading, montecarlo
 from workbench.errors import WorkbenchError
 from workbench.experiments import get, limits, metric
 from workbench.experiments.contract import Experiment, without
@@ -93,7 +93,9 @@ def run(experiment: str | Experiment, scenario: str | None = None, *, config: An
         cfg = exp.configure(scenario, **overrides)
     chosen = exp.select(estimators if estimators is not None else (cfg.estimators or None))
     cfg.estimators = tuple(e.spec for e in chosen)
-    cfg.add_metrics = tuple(metric.spec(m, exp.name) for m in cfg.add_metrics)
+    added = cfg.add_metrics
+    added = loading.split_list(added) if isinstance(added, str) else tuple(added or ())  # one spec, or several
+    cfg.add_metrics = tuple(metric.spec(m, exp.name) for m in added)
     exp.validate(cfg)
     limits.check_jobs(jobs)
     out_path = stream.check_output(Path(out), force) if out is not None else None

@@ -43,3 +43,29 @@ def umeyama(estimate: np.ndarray, truth: np.ndarray) -> Alignment:
     d = np.diag([1.0, np.sign(np.linalg.det(u @ vt)) or 1.0])
     R = u @ d @ vt
     return Alignment(float(np.arctan2(R[1, 0], R[0, 0])), mb - R @ ma)
+
+
+def interpolate_pose(times: np.ndarray, poses: np.ndarray, t: np.ndarray | float,
+                     max_gap: float = 0.5) -> np.ndarray:
+    """Poses ``(x, y, heading)`` sampled at strictly increasing ``times``, interpolated at ``t``.
+
+    The heading along the shorter arc, wrapped; NaN rows outside the span and inside gaps over ``max_gap``.
+    """
+    t = np.atleast_1d(np.asarray(t, dtype=float))
+    out = np.full((t.size, 3), np.nan)
+    n = times.size
+    if n == 0:
+        return out
+    if n == 1:
+        out[t == times[0]] = poses[0]
+        return out
+    inside = (t >= times[0]) & (t <= times[-1])
+    i = np.clip(np.searchsorted(times, t, side="right") - 1, 0, n - 2)
+    span = times[i + 1] - times[i]
+    frac = (t - times[i]) / span
+    ok = inside & ((span <= max_gap) | (frac <= 0.0) | (frac >= 1.0))
+    i, frac = i[ok], frac[ok]
+    p0, p1 = poses[i], poses[i + 1]
+    out[ok, :2] = p0[:, :2] + frac[:, None] * (p1[:, :2] - p0[:, :2])
+    out[ok, 2] = wrap(p0[:, 2] + frac * wrap(p1[:, 2] - p0[:, 2]))
+    return out

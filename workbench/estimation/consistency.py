@@ -40,8 +40,9 @@ class Innovations:
 
     def __post_init__(self) -> None:
         self.t = np.asarray(self.t, float).ravel()
-        self.nu = np.asarray(self.nu, float).reshape(len(self.t), -1)
-        m = self.nu.shape[1]
+        nu = np.asarray(self.nu, float)
+        m = nu.shape[-1] if nu.ndim == 2 else max(1, nu.size // max(len(self.t), 1))
+        self.nu = nu.reshape(len(self.t), m)
         self.S = np.asarray(self.S, float).reshape(len(self.t), m, m)
 
     @classmethod
@@ -58,10 +59,21 @@ class Innovations:
         """The measurements the filter used (not left out)."""
         return np.isfinite(self.nu).all(axis=1) & np.isfinite(self.S).all(axis=(1, 2))
 
-    def nis(self) -> np.ndarray:
-        """``nu' S^-1 nu`` per measurement (NaN where left out)."""
-        out = np.full(len(self.t), np.nan)
+    @property
+    def valid(self) -> np.ndarray:
+        """The used measurements whose ``S`` is positive definite (a filter whose covariance turned
+        indefinite can predict a negative variance: no NIS, whiteness or likelihood of those)."""
         ok = self.used
+        out = np.zeros(len(self.t), bool)
+        if ok.any():
+            S = 0.5 * (self.S[ok] + np.swapaxes(self.S[ok], -1, -2))
+            out[ok] = np.linalg.eigvalsh(S).min(axis=-1) > 0
+        return out
+
+    def nis(self) -> np.ndarray:
+        """``nu' S^-1 nu`` per measurement (NaN where left out or ``S`` is not positive definite)."""
+        out = np.full(len(self.t), np.nan)
+        ok = self.valid
         if ok.any():
             out[ok] = np.einsum("ki,ki->k", self.nu[ok], np.linalg.solve(self.S[ok], self.nu[ok][..., None])[..., 0])
         return out
@@ -69,14 +81,15 @@ class Innovations:
     def whitened(self) -> np.ndarray:
         """``L^-1 nu`` with ``S = L L'`` (Cholesky), rows of the used measurements: unit
         covariance where the filter is consistent."""
-        ok = self.used
+        ok = self.valid
         L = np.linalg.cholesky(self.S[ok])
         return np.linalg.solve(L, self.nu[ok][..., None])[..., 0]
 
     def nll(self) -> np.ndarray:
-        """Each used measurement's term of ``-log p(z)`` (NaN where left out)."""
+        """Each used measurement's term of ``-log p(z)`` (NaN where left out or ``S`` is not
+        positive definite)."""
         out = np.full(len(self.t), np.nan)
-        ok = self.used
+        ok = self.valid
         if ok.any():
             _, logdet = np.linalg.slogdet(self.S[ok])
             out[ok] = 0.5 * (self.dimension * np.log(2.0 * np.pi) + logdet + self.nis()[ok])

@@ -15,7 +15,6 @@ import rerun.blueprint as rrb
 
 from workbench.experiments import plots
 from workbench.experiments.contract import RunResult, RunSummary
-from workbench.experiments.metric import Metric
 from workbench.recording import layout as views
 
 TL = "time"
@@ -39,22 +38,13 @@ def _series(first: RunResult, runs: list[RunSummary]) -> tuple[dict[str, views.C
     (``/metrics/<metric>``), as the plots show them."""
     zero, over = {}, {}
     for m in first.metrics:
-        c = _run0(m, runs[0])
+        c = plots.over_runs(m, runs[:1])  # run 0's own values (a chi-square metric with its one-run band)
         if c is not None:
             zero[f"/run0/{m.name}"] = c
         c = plots.over_runs(m, runs)
         if c is not None:
             over[f"/metrics/{m.name}"] = c
     return zero, over
-
-
-def _run0(m: Metric, summary: RunSummary) -> views.Curves | None:
-    series, t = {}, None
-    for name, row in summary.metrics.items():
-        v = row.get(m.name)
-        if v is not None and v.t is not None:
-            t, series[name] = v.t, v.values
-    return None if t is None else views.Curves(t, series, m.unit)
 
 
 def _span(curves: dict[str, views.Curves]) -> tuple[float, float]:
@@ -66,11 +56,12 @@ def layout(first: RunResult, runs: list[RunSummary]) -> rrb.Blueprint:
     """Tabs: run 0's metrics, the metrics over runs, the results."""
     zero, over = _series(first, runs)
     span = _span({**zero, **over})
+    known = plots.by_name(first.metrics)
     tabs = []
-    for name, curves in (("run 0", zero), ("over runs", over)):
+    for name, curves, n in (("run 0", zero, None), ("over runs", over, len(runs))):
         if curves:
-            tabs.append(rrb.Vertical(*[views.plot(o, f"{o.rsplit('/', 1)[1]} ({c.unit})" if c.unit else
-                                                  o.rsplit("/", 1)[1], span, c, legend=i == 0)
+            titles = plots.titles(known, curves, n)
+            tabs.append(rrb.Vertical(*[views.plot(o, titles[o], span, c, legend=i == 0)
                                        for i, (o, c) in enumerate(curves.items())], name=name))
     tabs.append(rrb.TextDocumentView(origin="/summary", name="results"))
     return rrb.Blueprint(rrb.Tabs(*tabs), collapse_panels=True)
@@ -84,5 +75,9 @@ def record_run(rec: rr.RecordingStream, first: RunResult, zero: RunSummary) -> N
 def record_runs(rec: rr.RecordingStream, first: RunResult, runs: list[RunSummary], table_md: str) -> None:
     """The metrics over runs (the chi-square bands grey) and the results table."""
     plots.draw_curves(rec, _series(first, runs)[1], first.estimators, over_runs=True, timeline=TL)
-    plots.summary(rec, table_md)
+    note = [*plots.how_to_read(first, "the truth is not drawn"),
+            "- run 0: each time-series metric of run 0; over runs: at each step their RMS (an error) or mean over "
+            f"the {len(runs)} runs; a grey pair of lines is a chi-square metric's 95 % band (inside it the "
+            "estimator is consistent, above it overconfident)."]
+    plots.summary(rec, table_md + "\n\n" + "\n".join(note))
 

@@ -62,17 +62,22 @@ def extra(metrics: Iterable[metric.Metric], summaries: Sequence[Any], listed: Se
     return out
 
 
-def titles(metrics: Mapping[str, metric.Metric], curves: Mapping[str, Curves]) -> dict[str, str]:
-    """Each "metrics" tab plot's title: the metric's description and unit, over runs."""
+def titles(metrics: Mapping[str, metric.Metric], curves: Mapping[str, Curves], runs: int | None = None
+           ) -> dict[str, str]:
+    """Each metric plot's title: the metric's name, its description and unit, how the runs combine
+    at each step (``runs``: over that many; None: run 0 alone), and its band."""
     out = {}
     for origin in curves:
         m = metrics[origin.rsplit("/", 1)[1]]
+        what = m.description.split(",")[0].split(" (")[0]
+        how = "run 0" if runs is None else ("RMS" if m.reduce == "rms" else m.reduce) + f" over {runs} runs"
         band = ", grey: 95 % band" if m.dimension is not None else ""
-        out[origin] = f"{m.name} over runs" + (f" ({m.unit})" if m.unit else "") + band
+        out[origin] = f"{m.name}: {what}" + (f" ({m.unit})" if m.unit else "") + f", {how}{band}"
     return out
 
 
-def tab(curves: Mapping[str, Curves], metrics: Iterable[metric.Metric], span: tuple[float, float]) -> Any:
+def tab(curves: Mapping[str, Curves], metrics: Iterable[metric.Metric], span: tuple[float, float],
+        runs: int | None = None) -> Any:
     """The "metrics" tab (a view per ``/metrics/...`` curve, each fitted to its values), or None."""
     import rerun.blueprint as rrb
 
@@ -81,7 +86,7 @@ def tab(curves: Mapping[str, Curves], metrics: Iterable[metric.Metric], span: tu
     mine = {o: c for o, c in curves.items() if o.startswith("/metrics/")}
     if not mine:
         return None
-    names = titles(by_name(metrics), mine)
+    names = titles(by_name(metrics), mine, runs)
     return rrb.Vertical(*[layout.plot(o, names[o], span, c, legend=i == 0) for i, (o, c) in enumerate(mine.items())],
                         name="metrics")
 
@@ -95,11 +100,42 @@ def draw_curves(rec: Any, curves: Mapping[str, Curves], estimators: Mapping[str,
                      lambda o: o.startswith(OVER_RUNS) == over_runs, dict(others or {}))
 
 
-def summary(rec: Any, text: str) -> None:
-    """The results (markdown) in the recording's "results" view."""
+def summary(rec: Any, text: str, columns: int = 6) -> None:
+    """The results (markdown) in the recording's "results" view, a table wider than ``columns``
+    split into several (the view is a narrow panel; a wide table is cut off there)."""
     import rerun as rr
 
-    rec.log("/summary", rr.TextDocument(text, media_type=rr.MediaType.MARKDOWN), static=True)
+    rec.log("/summary", rr.TextDocument(narrow_tables(text, columns), media_type=rr.MediaType.MARKDOWN),
+            static=True)
+
+
+def narrow_tables(markdown: str, columns: int = 5) -> str:
+    """Markdown tables wider than ``columns`` split into several, each repeating the first
+    column (the right-hand panel is narrow; a wide table is cut off there)."""
+    out: list[str] = []
+    lines = markdown.splitlines()
+    i = 0
+    while i < len(lines):
+        if not lines[i].lstrip().startswith("|"):
+            out.append(lines[i])
+            i += 1
+            continue
+        j = i
+        while j < len(lines) and lines[j].lstrip().startswith("|"):
+            j += 1
+        rows = [[c.strip() for c in line.strip().strip("|").split("|")] for line in lines[i:j]]
+        width = max(len(r) for r in rows)
+        if width <= columns:
+            out.extend(lines[i:j])
+        else:
+            parts = -(-(width - 1) // (columns - 1))
+            per = -(-(width - 1) // parts)          # balanced: 9 columns in 3 tables of 3, not 4 + 4 + 1
+            for start in range(1, width, per):
+                cols = [0, *range(start, min(width, start + per))]
+                out.extend("| " + " | ".join(r[c] if c < len(r) else "" for c in cols) + " |" for r in rows)
+                out.append("")
+        i = j
+    return "\n".join(out)
 
 
 def how_to_read(first: Any, truth: str) -> list[str]:

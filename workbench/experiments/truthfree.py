@@ -42,7 +42,7 @@ def reference(ctx) -> str | None:
 
 def _innovations(est) -> consistency.Innovations | None:
     innov = getattr(est, "innovations", None)
-    return innov if isinstance(innov, consistency.Innovations) and innov.used.any() else None
+    return innov if isinstance(innov, consistency.Innovations) and innov.valid.any() else None
 
 
 def nis(data, est) -> Values | None:
@@ -52,7 +52,7 @@ def nis(data, est) -> Values | None:
 
 def whiteness(data, est) -> Values | None:
     innov = _innovations(est)
-    if innov is None or innov.used.sum() < LAGS + 2:
+    if innov is None or innov.valid.sum() < LAGS + 2:
         return None
     rho, band = consistency.whiteness(innov, LAGS)
     return Values([float(np.mean(np.abs(rho[np.isfinite(rho)]) > band))])

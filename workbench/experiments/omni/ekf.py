@@ -168,12 +168,10 @@ class BearingEkf:
                     return
         try:
             K = np.linalg.solve(S, PH.T).T
-            L = np.linalg.cholesky(S)
         except np.linalg.LinAlgError:
             self.failures += 1
             return
-        seq, w = np.diag(L), np.linalg.solve(L, nu)
-        self.innovations.extend((t, float(a * b), float(a * a)) for a, b in zip(seq, w, strict=True))
+        self._note(t, nu, S)
         x = self.x + K @ nu
         P = self.P - K @ S @ K.T
         if not (np.isfinite(x).all() and np.isfinite(P).all()):
@@ -182,6 +180,16 @@ class BearingEkf:
         self.x = x
         self.x[2] = wrap(self.x[2])
         self.P = 0.5 * (P + P.T)
+
+    def _note(self, t: float, nu: np.ndarray, S: np.ndarray) -> None:
+        """Note the update's innovations one bearing at a time (:meth:`update`); where ``S`` is not
+        positive definite (the paper's augmentation can make it so) each bearing's own ``S_ii``."""
+        try:
+            L = np.linalg.cholesky(S)
+            seq, w = np.diag(L), np.linalg.solve(L, nu)
+            self.innovations.extend((t, float(a * b), float(a * a)) for a, b in zip(seq, w, strict=True))
+        except np.linalg.LinAlgError:
+            self.innovations.extend((t, float(v), float(s)) for v, s in zip(nu, np.diag(S), strict=True))
 
     # --- (1)-(5), (14)-(15) ----------------------------------------------------------------
     def start(self, lm: int, bearing: float, step: int) -> None:

@@ -57,6 +57,7 @@ from pathlib import Path
 import numpy as np
 
 from workbench.errors import DataNotFound, DataWarning, WorkbenchError
+from workbench.estimation.alignment import interpolate_pose
 from workbench.estimation.angles import wrap
 
 ROBOT_SUBJECTS = frozenset(range(1, 6))
@@ -116,40 +117,12 @@ class MrclamLog:
         span or inside a gap between samples longer than ``max_gap`` seconds (a time exactly on
         a sample is always valid).
         """
-        if len(self.truth_t) == 0:  # a log without its truth
-            return np.full((np.size(t), 3), np.nan)
         return interpolate_pose(self.truth_t, self.truth_pose, t, max_gap)
 
     def landmark_array(self) -> tuple[np.ndarray, np.ndarray]:
         """Landmark subjects ``(L,)`` in ascending order and their true positions ``(L, 2)``."""
         ids = np.array(sorted(self.landmarks), dtype=int)
         return ids, np.array([self.landmarks[i] for i in ids]).reshape(-1, 2)
-
-
-def interpolate_pose(times: np.ndarray, poses: np.ndarray, t: np.ndarray | float,
-                     max_gap: float = MAX_TRUTH_GAP) -> np.ndarray:
-    """Poses ``(x, y, heading)`` sampled at strictly increasing ``times``, interpolated at ``t``.
-
-    See :meth:`MrclamLog.truth_at`; NaN rows outside the span and inside gaps over ``max_gap``.
-    """
-    t = np.atleast_1d(np.asarray(t, dtype=float))
-    out = np.full((t.size, 3), np.nan)
-    n = times.size
-    if n == 0:
-        return out
-    if n == 1:
-        out[t == times[0]] = poses[0]
-        return out
-    inside = (t >= times[0]) & (t <= times[-1])
-    i = np.clip(np.searchsorted(times, t, side="right") - 1, 0, n - 2)
-    span = times[i + 1] - times[i]
-    frac = (t - times[i]) / span
-    ok = inside & ((span <= max_gap) | (frac <= 0.0) | (frac >= 1.0))
-    i, frac = i[ok], frac[ok]
-    p0, p1 = poses[i], poses[i + 1]
-    out[ok, :2] = p0[:, :2] + frac[:, None] * (p1[:, :2] - p0[:, :2])
-    out[ok, 2] = wrap(p0[:, 2] + frac * wrap(p1[:, 2] - p0[:, 2]))
-    return out
 
 
 def robots_in(folder: Path) -> list[int]:

@@ -148,7 +148,7 @@ def layout(first: RunResult, runs: list[RunSummary]) -> rrb.Blueprint:
     span = (float(runs[0].t[0]), float(runs[0].t[-1]))
     curves = plots(first, runs)
     return blueprint(list(first.estimates), scene(first), curves, first.images is not None, span,
-                     metric_plots.tab(curves, first.metrics, span))
+                     metric_plots.tab(curves, first.metrics, span, len(runs)))
 
 
 def scene(first: RunResult) -> np.ndarray:

@@ -132,7 +132,7 @@ def layout(first: RunResult, runs: list[RunSummary]) -> rrb.Blueprint:
     span = (float(d.t[0]), float(d.t[-1]))
     curves = plots(first, runs)
     return blueprint(curves, images=first.images is not None, span=span, scene=scene(first),
-                     extra=metric_plots.tab(curves, first.metrics, span))
+                     extra=metric_plots.tab(curves, first.metrics, span, len(runs)))
 
 
 def scene(first: RunResult) -> np.ndarray:

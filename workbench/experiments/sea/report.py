@@ -80,7 +80,7 @@ def _cell(e: dict, key: str, fmt: str, runs: int) -> str:
     if key == "seconds":
         return f"{e[key]:{fmt}}"
     std = e.get(f"{key}_std")
-    return _pm(e[key], std if std is not None else 0.0, runs)
+    return _pm(e[key], std, runs) if std is not None else f"{e[key]:{fmt}}"  # (a metric pooled over runs: no spread)
 
 
 def ships_table(stats: dict) -> str:

@@ -38,6 +38,7 @@ import rerun as rr
 import rerun.blueprint as rrb
 
 from workbench.errors import WorkbenchError
+from workbench.experiments.plots import narrow_tables
 from workbench.experiments.terrain.estimators import ITERATED, POSTERIOR, REFINED, SEARCH, TABLE
 from workbench.experiments.terrain.evaluate import RunSummary
 from workbench.experiments.terrain.model import PREFERRED
@@ -158,35 +159,6 @@ def legend(first: RunResult, origin: np.ndarray) -> str:
     lines.append("- ground error maps: per-pixel horizontal error of each halftone model over image II, "
                  "each on its own colour scale (bar in metres).")
     return "\n".join(lines)
-
-
-def narrow_tables(markdown: str, columns: int = 5) -> str:
-    """Markdown tables wider than ``columns`` split into several, each repeating the first
-    column (the right-hand panel is narrow; a wide table is cut off there)."""
-    out: list[str] = []
-    lines = markdown.splitlines()
-    i = 0
-    while i < len(lines):
-        if not lines[i].lstrip().startswith("|"):
-            out.append(lines[i])
-            i += 1
-            continue
-        j = i
-        while j < len(lines) and lines[j].lstrip().startswith("|"):
-            j += 1
-        rows = [[c.strip() for c in line.strip().strip("|").split("|")] for line in lines[i:j]]
-        width = max(len(r) for r in rows)
-        if width <= columns:
-            out.extend(lines[i:j])
-        else:
-            parts = -(-(width - 1) // (columns - 1))
-            per = -(-(width - 1) // parts)          # balanced: 9 columns in 3 tables of 3, not 4 + 4 + 1
-            for start in range(1, width, per):
-                cols = [0, *range(start, min(width, start + per))]
-                out.extend("| " + " | ".join(r[c] if c < len(r) else "" for c in cols) + " |" for r in rows)
-                out.append("")
-        i = j
-    return "\n".join(out)
 
 
 def layout(first: RunResult, runs: list[RunSummary]) -> rrb.Blueprint:
