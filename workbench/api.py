@@ -68,7 +68,7 @@ def run(experiment: str | Experiment, scenario: str | None = None, *, config: An
         out: str | Path | None = None, metrics: str | Path | None = None, force: bool = False,
         jobs: int | None = None, spawn: bool = False, serve: bool = False, connect: str | None = None,
         progress: Callable[[int, int], None] | None = None, extras: dict | None = None,
-        **overrides: Any) -> Result:
+        export_data: str | Path | None = None, **overrides: Any) -> Result:
     """Run an experiment: ``runs`` Monte Carlo runs (``seed``, ``runs`` and every other config
     field as keyword overrides), every selected estimator on each run's data.
 
@@ -80,13 +80,16 @@ def run(experiment: str | Experiment, scenario: str | None = None, *, config: An
     process, or a running viewer at a ``rerun+http://...`` URL: run 0 as soon as it is computed,
     the curves over runs and the table when the Monte Carlo runs are done (the saved recording is
     the same either way: it is written from the same results, whatever is streamed).
-    ``extras``: the experiment's extra options (e.g. omni's ``export_tum``, terrain's ``model``). ``progress(done,
+    ``extras``: the experiment's extra options (e.g. omni's ``export_tum``, terrain's ``model``);
+    ``export_data``: a folder for run 0's dataset in the experiment's open log format. ``progress(done,
     total)`` is called as runs finish.
     """
     from workbench.recording import stream
 
     exp = get(experiment) if isinstance(experiment, str) else experiment
     extras = dict(extras or {})
+    if export_data is not None:
+        extras["export_data"] = export_data
     if config is not None:
         cfg = dataclasses.replace(config, **{k: v for k, v in overrides.items() if v is not None})
     else:

@@ -111,6 +111,9 @@ def _shared(exp) -> list[inspect.Parameter]:
                                 "module:function or file.py:function; +name adds to the defaults."),
             ("add_metrics", str, "Comma-separated metrics of your own (module:function or file.py:function), "
                                  "beside the experiment's and the installed ones.")]
+    if exp.writes_logs:
+        rows.append(("export_data", str, "Write run 0's dataset into this folder in the open log format "
+                                          "(docs/log-formats.md; read it back with --scenario log --data)."))
     return [inspect.Parameter(n, inspect.Parameter.KEYWORD_ONLY, annotation=t if t is bool else t | None,
                               default=typer.Option(False if t is bool else None, help=_escape(h))) for n, t, h in rows]
 
@@ -122,6 +125,8 @@ def command(exp, friendly: Callable[[Callable], Callable]) -> Callable:
         shared = {k: given.pop(k) for k in ("scenario", "out", "force", "metrics", "spawn", "serve", "jobs",
                                             "estimators", "connect")}
         extras = {opt.field: opt.value(given.pop(opt.field)) for opt in exp.extras}
+        if "export_data" in given:
+            extras["export_data"] = given.pop("export_data")
         added = given.pop("add_metrics")
         overrides = {"seed": given.pop("seed"), "runs": given.pop("runs"),
                      "add_metrics": split_list(added) if added is not None else None}

@@ -44,6 +44,7 @@ import functools
 import importlib
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 from workbench.errors import WorkbenchError
@@ -360,12 +361,29 @@ class Experiment:
         return first.data.label
 
     # --- optional hooks for an experiment's extra options (exports)
+    @property
+    def writes_logs(self) -> bool:
+        """It can write a dataset in its open log format (``run.write_log``: ``--export-data``)."""
+        return self._optional("run", "write_log") is not None
+
     def check_extras(self, cfg: Any, extras: dict, force: bool) -> None:
-        """Check the extra outputs before any work."""
+        """Check the extra outputs before any work (a subclass calls this one too)."""
+        folder = extras.get("export_data")
+        if folder is not None:
+            if not self.writes_logs:
+                raise WorkbenchError(f"{self.name} has no log format to export to (--export-data)")
+            if not str(folder).strip() or Path(folder).is_file():
+                raise WorkbenchError(f"--export-data {folder!r}: name a folder")
 
     def export(self, first: Any, stats: dict, extras: dict, force: bool) -> list[str]:
-        """Extra exports after the run; lines to print."""
-        return []
+        """Extra exports after the run (a subclass calls this one too); lines to print:
+        ``export_data``, run 0's dataset in the experiment's open log format."""
+        folder = extras.get("export_data")
+        if folder is None:
+            return []
+        written = self.role("run").write_log(first.data, Path(folder), force)
+        stats["exported_data"] = [str(p) for p in written]
+        return [f"log:       {folder}/ (read it back: --scenario log --data {folder})"]
 
 
 @functools.lru_cache(maxsize=64)

@@ -43,6 +43,7 @@ class Omni(Experiment):
     def check_extras(self, cfg: OmniConfig, extras: dict, force: bool) -> None:
         from workbench.recording import stream
 
+        super().check_extras(cfg, extras, force)
         if extras.get("export_tum") is not None:
             folder = str(extras["export_tum"])
             require(folder.strip() != "", "--export-tum needs a folder name, got ''")
@@ -54,15 +55,16 @@ class Omni(Experiment):
     def export(self, first, stats: dict, extras: dict, force: bool) -> list[str]:
         """``export_tum``: run 0's trajectories (truth and every estimator) as TUM files, for evo."""
         folder = extras.get("export_tum")
+        lines = super().export(first, stats, extras, force)
         if folder is None:
-            return []
+            return lines
         from workbench.experiments.omni import tum
 
         d = first.data
         trajectories = {"truth": (d.t, d.truth)}
         trajectories.update({name: (d.t[est.steps], est.pose) for name, est in first.estimates.items()})
         stats["tum"] = [str(p) for p in tum.export(folder, trajectories, force)]
-        return [f"TUM:       {folder}/"]
+        return [*lines, f"TUM:       {folder}/"]
 
 
 EXPERIMENT = Omni()

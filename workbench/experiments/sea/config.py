@@ -15,6 +15,7 @@ SCENARIOS: dict[str, Scenario] = {s.name: s for s in (
     # a real ship is seen from a 20 m mast 1 km abeam for 180 s; it manoeuvres (0.3 m/s^2)
     Scenario("ais", "a real AIS ship in the Solent as the object, from a 20 m mast 1 km abeam",
              {"height": 20.0, "duration": 180.0, "sigma_acc": 0.3}, real_data=True),
+    Scenario("log", "a log of your own (--data FOLDER, the open format of docs/log-formats.md; the truth optional)"),
 )}
 REGRESSORS = ("measured", "filtered")
 OBSERVERS = ("mast", "uav")
@@ -121,6 +122,8 @@ class SeaConfig(Config):
         require(self.mmsi is None or self.mmsi == ALL_SHIPS or (isinstance(self.mmsi, int) and self.mmsi >= 0),
                 f"--mmsi must be a ship's number or {ALL_SHIPS!r}, got {self.mmsi!r}")
         require(self.mmsi is None or self.scenario == "ais", "--mmsi needs --scenario ais")
+        require(self.scenario != "log" or self.data is not None, "--scenario log needs --data FOLDER (a log folder)")
+        require(self.scenario != "log" or not self.from_images, "--from-images renders a simulation: not a log")
         require(self.observer in OBSERVERS, f"--observer must be one of {', '.join(OBSERVERS)}, got {self.observer!r}")
         require(self.observer == "mast" or self.scenario == "ais", "--observer uav needs --scenario ais")
         require(self.uav_start >= 0, f"--uav-start must not be negative, got {self.uav_start}")
@@ -179,7 +182,7 @@ OPTIONS: tuple[Option, ...] = (
     Option("robust", "Huber noise model in the GTSAM factors.", bool, switch="--robust/--no-robust"),
     Option("mmsi", "ais: the ship, or 'all' (every ship with a long enough track, a row each) "
                    "[default: the most manoeuvring one].", str, parse=_mmsi),
-    Option("data", "ais: the AIS CSV [default: <data root>/ais/...].", Path),
+    Option("data", "ais: the AIS CSV [default: <data root>/ais/...]; log: the log folder.", Path),
     Option("ais_range", "ais: camera stand-off from the track, m."),
     Option("ais_max_gap", "ais: the longest gap between a ship's reports inside a run, s."),
     Option("observer", "ais: the camera's platform: mast (stationary) | uav (the real UAV flight).", str),

@@ -40,8 +40,8 @@ def errors(data: SeaData, est: Estimate) -> np.ndarray:
 def bounds(data: SeaData, cfg: SeaConfig) -> sea_bounds.Bounds | None:
     """The run's Cramér-Rao bounds (:class:`.bounds.Bounds`, which keeps each delay's once made);
     none where the angles come from images (their noise is the image stage's, not the model's)."""
-    if cfg.from_images:
-        return None
+    if cfg.from_images or not np.isfinite(data.target).all():
+        return None  # (the bound is at the truth: a log without it, or with a partial one, has none)
     truth = sea_bounds.Truth(data.target, data.observer, data.seen, data.disturbed)
     model = sea_bounds.Model(data.dt, data.height, data.sigma_acc, data.sigma_alpha, data.sigma_beta,
                              data.sigma_observer, cfg.prior_speed,

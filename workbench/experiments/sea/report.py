@@ -37,8 +37,9 @@ def table(stats: dict) -> str:
     lines += markdown.table(["estimator", *(title for _, title, _ in cols)], rows)
     extra = []
     for name, e in stats["estimators"].items():
-        bits = [f"position rmse {e['position_rmse']:.2f} m"]
-        if e.get("coverage", 1.0) < 1.0:
+        bits = [f"position rmse {e['position_rmse']:.2f} m" if e.get("position_rmse") is not None
+                else "no truth: no errors"]
+        if (e.get("coverage") or 1.0) < 1.0:
             bits.append(f"estimates {100 * e['coverage']:.0f} % of steps")
         if e.get("anees") is not None:
             lo, hi = e["anees_band"]

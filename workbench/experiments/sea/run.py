@@ -35,8 +35,12 @@ def make_data(cfg: SeaConfig, run: int) -> SeaData:
 
     With ``--mmsi all`` run k is run ``k % runs`` of ship ``k // runs`` (the usable ships by
     MMSI, :func:`.readers.ais.ship_set`), seeded by ``(seed, k % runs)``: each ship's runs are the very
-    runs ``--mmsi <that ship>`` makes.
+    runs ``--mmsi <that ship>`` makes. A log (``--scenario log``) is the same every run.
     """
+    if cfg.scenario == "log":
+        from workbench.experiments.sea.readers import log
+
+        return log.read(cfg.data)
     if cfg.scenario != "ais":
         return simulate(cfg, np.random.default_rng([cfg.seed, run]))
     from workbench.experiments.sea.readers import ais, uav
@@ -113,3 +117,10 @@ def run_once(cfg: SeaConfig, run: int, estimators: list[Estimator], record: bool
     res.failed = {**failed_sim, **res.failed}
     res.simulated = (data, sim)
     return res
+
+
+def write_log(data: SeaData, folder, force: bool = False) -> list:
+    """A dataset in the open log format (``--export-data``; :mod:`.readers.log`)."""
+    from workbench.experiments.sea.readers import log
+
+    return log.write(data, folder, force)

@@ -53,6 +53,7 @@ class Terrain(Experiment):
         from workbench.experiments.terrain import model
         from workbench.recording import stream
 
+        super().check_extras(cfg, extras, force)
         name = extras.get("model_from")
         if name is not None:
             chosen = [spec.split("=")[0] for spec in cfg.estimators]
@@ -67,14 +68,15 @@ class Terrain(Experiment):
     def export(self, first, stats: dict, extras: dict, force: bool) -> list[str]:
         """``model``: run 0's halftone model as files (:func:`.model.write`)."""
         folder = model_folder(extras)
+        lines = super().export(first, stats, extras, force)
         if folder is None:
-            return []
+            return lines
         from workbench.experiments.terrain import model
 
         m = model.from_run(first, extras.get("model_from"))
         model.write(folder, m, first.scene, force)
         stats["model"] = {"folder": str(folder), "model_id": m.model_id, "estimator": m.estimator}
-        return [f"model:     {folder}/ (from {m.estimator}; `workbench measure {folder} --point U,V`)"]
+        return [*lines, f"model:     {folder}/ (from {m.estimator}; `workbench measure {folder} --point U,V`)"]
 
 
 def model_folder(extras: dict) -> Path | None:
