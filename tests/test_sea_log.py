@@ -12,6 +12,7 @@ from launcher import DATA, wb
 
 import workbench
 from workbench.experiments.sea.readers import csvfile
+from workbench.recording import blueprints, readback
 
 ALL = "geometric,rls,window-rls,ekf,gtsam,isam2,fixed-lag"
 
@@ -47,6 +48,12 @@ def test_without_truth_and_with_a_sparse_one(tmp_path):
     stats = json.loads(m.read_text())
     ekf = stats["estimators"]["ekf"]
     assert ekf["position_rmse"] is None and ekf["anees"] is None and ekf["consistent_without_truth"] is True
+    # the recording's reference is the smoother: each estimate's departure from it, named so
+    names = [v.name for v in blueprints.layout(out).views()]
+    assert "departure from gtsam, x (m)" in names and not any(n.startswith("error x") for n in names)
+    t, x = readback.series(out, "/errors/x/ekf")
+    assert len(t) == len(res.data.t)
+    assert np.allclose(x, res.estimates["gtsam"].position[:, 0] - res.estimates["ekf"].position[:, 0], atol=1e-9)
     assert ekf["nis"] == pytest.approx(res.metrics["estimators"]["ekf"]["nis"], rel=1e-9)  # it never read the truth
     # a sparse truth (a fix every 2 s): the errors at those times alone
     sparse = tmp_path / "sparse"

@@ -43,12 +43,19 @@ class RunSummary(Summary):
     ship: int | None = None                         # ais: the ship's MMSI
     label: str = ""                                 # the dataset's label
     repairs: dict = field(default_factory=dict)     # what reading the real files repaired
+    reference: str | None = None                    # no truth: ``errors`` are departures from this smoother
 
 
 def summarise(result: RunResult, cfg: SeaConfig, run: int) -> RunSummary:
     """The run's errors, forecast errors, impulse transient, image-stage figures and bounds."""
     data = result.data
     errs = {name: errors(data, e) for name, e in result.estimates.items()}
+    reference = None
+    if not np.isfinite(data.target).any():  # a log without truth: what the run 0 plots show is each
+        reference = _smoother(result)        # estimate's departure from the run's smoother
+        if reference is not None:
+            ref = result.estimates[reference]
+            errs = {name: departures(ref, e) for name, e in result.estimates.items()}
     fc, unusable = {}, {}
     for name, est in result.estimates.items():
         if est.forecast is not None:
@@ -76,7 +83,21 @@ def summarise(result: RunResult, cfg: SeaConfig, run: int) -> RunSummary:
     crb = {} if b is None else {d: {q: v[0] for q, v in b.variances(d).items()}
                                 for d in {0.0, float("inf"), *delays.values()}}
     return RunSummary(run, errs, fc, unusable, seen, data.t, transient, simulated, image, delays, crb, data.ship,
-                      data.label, dict(data.repairs or {}), failed=dict(result.failed))
+                      data.label, dict(data.repairs or {}), reference, failed=dict(result.failed))
+
+
+def _smoother(result: RunResult) -> str | None:
+    """The run's smoother: the first estimator using the whole run that gives covariances."""
+    return next((n for n, e in result.estimators.items() if n in result.estimates and not e.causal
+                 and e.covariances and e.delay == float("inf")), None)
+
+
+def departures(reference: Estimate, est: Estimate) -> np.ndarray:
+    """``reference - estimate`` per step, as :func:`.metrics.errors` gives errors: x, y (m),
+    alpha, beta (rad, alpha wrapped), range (m)."""
+    return np.stack([reference.position[:, 0] - est.position[:, 0], reference.position[:, 1] - est.position[:, 1],
+                     wrap(reference.alpha - est.alpha), reference.beta - est.beta, reference.range - est.range],
+                    axis=1)
 
 
 def bound_variances(runs: list[RunSummary], delay: float) -> dict[str, np.ndarray] | None:
@@ -148,7 +169,7 @@ def statistics(cfg: SeaConfig, runs: list[RunSummary], stats: dict) -> None:
             entry["recovery"] = _recovery(cfg, runs[0].t, D, cfg.sigma_alpha_arcmin)
         E = np.stack([r.errors[name] for r in runs]) * scale  # (runs, T, 5)
         lost = ~runs[0].seen  # the same steps in every run: the scenario's loss window
-        if lost.any() and np.isfinite(E[:, lost, 0]).any():
+        if lost.any() and runs[0].reference is None and np.isfinite(E[:, lost, 0]).any():
             entry["rmse_during_loss"] = _named(metrics.rmse(E[:, lost].reshape(-1, 5), axis=0))
         if name in runs[0].forecast_err:
             F = np.stack([r.forecast_err[name] for r in runs])

@@ -77,7 +77,8 @@ def plots(first: RunResult, runs: list[RunSummary]) -> dict[str, views.Curves]:
 
 
 def blueprint(curves: dict[str, views.Curves], images: bool = False, span: tuple[float, float] = (0.0, 72.0),
-              scene: np.ndarray | None = None, extra: rrb.Vertical | None = None) -> rrb.Blueprint:
+              scene: np.ndarray | None = None, extra: rrb.Vertical | None = None,
+              reference: str | None = None) -> rrb.Blueprint:
     """The top-down map on the left (framed on ``scene``, the observer's and the object's
     tracks); named tabs of angles and range, errors, the curves over runs and the results on
     the right; every plot opens on the whole run ``span``, its axis and legend fitted to its
@@ -93,12 +94,13 @@ def blueprint(curves: dict[str, views.Curves], images: bool = False, span: tuple
         plot("/series/range", "range d (m)", legend=False),
         name="angles and range",
     )
+    what = "error" if reference is None else f"departure from {reference},"  # (no truth: the smoother)
     errors = rrb.Vertical(
-        plot("/errors/x", "error x (m)"),
-        plot("/errors/y", "error y (m)", legend=False),
-        plot("/errors/alpha", "error alpha (arcmin)", legend=False),
-        plot("/errors/beta", "error beta (arcmin)", legend=False),
-        name="errors (run 0)",
+        plot("/errors/x", f"{what} x (m)"),
+        plot("/errors/y", f"{what} y (m)", legend=False),
+        plot("/errors/alpha", f"{what} alpha (arcmin)", legend=False),
+        plot("/errors/beta", f"{what} beta (arcmin)", legend=False),
+        name="errors (run 0)" if reference is None else f"departure from {reference} (run 0)",
     )
     mc = rrb.Vertical(
         plot("/monte_carlo/position_rmse", "position RMSE over runs (m), grey: Cramér-Rao bounds"),
@@ -132,7 +134,7 @@ def layout(first: RunResult, runs: list[RunSummary]) -> rrb.Blueprint:
     span = (float(d.t[0]), float(d.t[-1]))
     curves = plots(first, runs)
     return blueprint(curves, images=first.images is not None, span=span, scene=scene(first),
-                     extra=metric_plots.tab(curves, first.metrics, span, len(runs)))
+                     extra=metric_plots.tab(curves, first.metrics, span, len(runs)), reference=runs[0].reference)
 
 
 def scene(first: RunResult) -> np.ndarray:
@@ -193,7 +195,8 @@ def how_to_read(first: RunResult, runs: int) -> str:
         "its 95 % covariance ellipse and its l-step forecast.",
         "- angles and range: azimuth alpha from the course and elevation beta below the horizon (arcmin), "
         "horizontal range d (m), for the truth, the measurements and each estimator.",
-        "- errors (run 0): truth minus estimate in x, y (m) and the angles (arcmin).",
+        "- errors (run 0): truth minus estimate in x, y (m) and the angles (arcmin); on a log without truth, "
+        "the smoother minus each estimate instead (departure from it: where a filter and the smoother part ways).",
         f"- over runs ({runs} runs): the position RMSE at each step over the runs, with the Cramér-Rao bounds of a "
         "filter (light grey) and of a smoother of the whole run (dark grey): no estimator can be below the one it "
         "is held to for long (the results' efficiency is RMSE / bound); the NEES of the estimators with "
