@@ -2,14 +2,18 @@
 filters' consistency over seeded Monte Carlo runs."""
 
 import math
+from dataclasses import replace
 
+import gtsam
 import numpy as np
 import pytest
+from gtsam.symbol_shorthand import L, X
 
 import workbench
 from workbench.errors import WorkbenchError
 from workbench.estimation import metrics, unscented
 from workbench.estimation.angles import wrap
+from workbench.estimation.metrics import chi2_quantile
 from workbench.experiments import figures
 from workbench.experiments.omni import ekf, evaluate, graph, triangulation, tum
 from workbench.experiments.omni.config import OmniConfig, make_config
@@ -410,7 +414,7 @@ def test_the_gate_keeps_misread_barcodes_out_of_the_graph():
     assert clean.gated < 0.03 * len(data.meas_lm)
 
 
-def test_the_batch_regates_against_its_own_answer(monkeypatch):
+def test_the_batch_regates_against_its_own_answer():
     """The grown graph gates causally, against a prediction; the batch re-gates every bearing
     against its smoothed answer. Handed a causal verdict that left out 40 good bearings besides
     the four misreads (as one made while the prediction was off does), it takes the good ones
@@ -419,18 +423,69 @@ def test_the_batch_regates_against_its_own_answer(monkeypatch):
     data = simulate(cfg, np.random.default_rng(3))
     bad, changed = _misread(data, 50.0)
     kf = graph.keyframes(bad, cfg)
-    own = graph._batch_start(bad, cfg, kf, None)
+    own = graph.own_start(bad, cfg, kf)
     step_of = {int(s): e for e, s in enumerate(kf.steps)}
     misread = {(step_of[int(bad.meas_step[i])], int(bad.meas_lm[i])) for i in changed}
     good = sorted({(step_of[int(s)], int(lm)) for s, lm in zip(bad.meas_step, bad.meas_lm, strict=True)} - misread)
     stale = set(good[::max(1, len(good) // 40)][:40])
-    monkeypatch.setattr(graph, "_batch_start", lambda *a: (own[0], own[1], own[2] | stale))
-    regated = graph.batch(bad, cfg, kf)
-    monkeypatch.setattr(graph, "_batch_start", lambda *a: own)
-    reference = graph.batch(bad, cfg, kf)
+    regated = graph.batch(bad, cfg, kf, [graph.Start("stale", own.poses, own.landmarks, own.rejected | stale)])
+    reference = graph.batch(bad, cfg, kf, [own])
     left_out = {(step_of[int(bad.meas_step[i])], int(bad.meas_lm[i])) for i in regated.gated_bearings}
     assert misread <= left_out and len(stale & left_out) <= 1
     assert np.max(np.hypot(*(regated.pose[:, :2] - reference.pose[:, :2]).T)) < 0.01
+
+def test_the_batch_recovers_from_a_wrong_start_by_its_cost():
+    """Started from a deliberately wrong trajectory (dead reckoning mirrored about the start: every
+    turn the other way), LM stops in a wrong minimum tens of metres off; handed that start and dead
+    reckoning, the batch keeps the one of lower cost on the data (no truth read) and ends where it
+    ends from dead reckoning alone; the wrong start's cost is many times the right one's."""
+    cfg = OmniConfig(duration=120.0).validate()
+    data = simulate(cfg, np.random.default_rng(5))
+    kf = graph.keyframes(data, cfg)
+    odometry = graph.own_start(data, cfg, kf, "odometry")
+    p = odometry.poses.copy()
+    p[:, 1], p[:, 2] = 2 * p[0, 1] - p[:, 1], 2 * p[0, 2] - p[:, 2]
+    wrong = graph.Start("wrong", p, np.full((len(data.landmarks), 2), np.nan), set())
+
+    def rms(est):
+        e = evaluate.pose_errors(data.truth[est.steps], est.pose)
+        return float(np.sqrt(np.mean(e[:, 0] ** 2 + e[:, 1] ** 2)))
+
+    stuck, alone, both = (graph.batch(data, cfg, kf, s) for s in ([wrong], [odometry], [wrong, odometry]))
+    assert rms(stuck) > 10.0 and rms(alone) < 0.5  # measured: 84 m and 0.31 m
+    assert both.start == "odometry" and both.start_costs["wrong"] > 10 * both.start_costs["odometry"]
+    assert np.array_equal(both.pose, alone.pose)
+    # the cost is the data's alone: the same for a start that ends in the same minimum
+    assert both.start_costs["odometry"] == pytest.approx(alone.start_costs["odometry"])
+
+
+def test_the_robust_cost_counts_a_bearing_left_out_at_the_gate():
+    """Truncated least squares by hand, at the truth with every bearing exact: a bearing turned 2
+    sigma adds half its squared normalised residual (2); one turned 20 sigma, or each bearing of
+    a landmark out of the map, adds half the gate's chi-square quantile, however far it is."""
+    cfg = _quiet(nis_gate=0.99)
+    data = simulate(cfg, np.random.default_rng(0))
+    p, lm = data.truth[data.meas_step], data.landmarks[data.meas_lm]
+    data = replace(data, meas_bearing=wrap(np.arctan2(lm[:, 1] - p[:, 1], lm[:, 0] - p[:, 0]) - p[:, 2]))
+    kf = graph.keyframes(data, cfg)
+    values = gtsam.Values()
+    for e, s in enumerate(kf.steps):
+        values.insert(X(e), gtsam.Pose2(*data.truth[s]))
+    for i, point in enumerate(data.landmarks):
+        values.insert(L(i), gtsam.Point2(*point))
+    inserted = np.ones(len(data.landmarks), bool)
+    base = graph.robust_cost(data, cfg, kf, values, inserted)
+    gate = chi2_quantile(0.99, 1)
+    e = next(e for e, (lms, _) in enumerate(kf.bearings) if len(lms))
+    lms, bearings = kf.bearings[e]
+    for turn, added in ((2.0, 2.0), (20.0, 0.5 * gate)):
+        turned = graph.Keyframes(kf.steps, kf.between, list(kf.bearings), kf.dead_reckoning)
+        turned.bearings[e] = (lms, bearings + np.r_[turn * data.sigma_bearing, np.zeros(len(lms) - 1)])
+        assert graph.robust_cost(data, cfg, turned, values, inserted) - base == pytest.approx(added, abs=1e-6)
+    inserted[lms[0]] = False
+    seen = sum(int(np.sum(ls == lms[0])) for ls, _ in kf.bearings)
+    assert graph.robust_cost(data, cfg, kf, values, inserted) - base == pytest.approx(0.5 * gate * seen, abs=1e-6)
+
 
 def test_consensus_places_a_landmark_by_its_agreeing_rays():
     """Twelve rays to a landmark at (5, 5) from poses along the x axis, three of them turned

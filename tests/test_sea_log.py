@@ -11,7 +11,7 @@ import pytest
 from launcher import DATA, wb
 
 import workbench
-from workbench.experiments.sea.readers import csvfile
+from workbench.experiments import csvfile
 from workbench.recording import blueprints, readback
 
 ALL = "geometric,rls,window-rls,ekf,gtsam,isam2,fixed-lag"

@@ -11,8 +11,8 @@ from launcher import DATA, wb
 
 import workbench
 from workbench.errors import DataWarning, WorkbenchError
-from workbench.experiments import get
-from workbench.experiments.sea.readers import ais, csvfile, uav
+from workbench.experiments import csvfile, get
+from workbench.experiments.sea.readers import ais, uav
 from workbench.recording import readback
 from workbench.sweeps import runner
 

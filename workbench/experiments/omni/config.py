@@ -26,8 +26,16 @@ IMAGE_SIGMA_BEARING_DEG = 0.3
 # EKF on its innovation, the graph against its last LM pass carried on with the odometry:
 # misread barcodes, robot 3 at 255 s), and the graph takes a damped LM pass every 20 s
 # (iSAM2's undamped steps run away here).
+BATCH_STARTS = ("odometry", "grown", "isam2", "ekf")
+"""Where gtsam-batch may start (:func:`.graph.batch` keeps the start of lowest cost on the data)."""
 ODOMETRY_BETWEEN = ("switch", "hold")
 """How a real log's velocity command is read between two logged rows (:mod:`.real`)."""
+
+LOG_DEFAULTS = {"settle": 0.0, "graph_parallax_deg": 15.0, "lm_every": 20.0, "drop_after": 30.0,
+                "min_parallax_deg": 15.0, "nis_gate": 0.99, "ekf_init": "linear", "ekf_second_order": True,
+                "batch_starts": "grown,isam2"}
+"""A log's estimator settings: a real robot's (MRCLAM's, as above) without its camera's; the
+odometry's and bearings' noise come from the log's manifest."""
 
 SCENARIOS: dict[str, Scenario] = {s.name: s for s in (
     Scenario("paper", "the paper's 500 s simulation: 80 x 80 m room, 24 wall lines and 8 pillars, 3 m/s"),
@@ -35,7 +43,10 @@ SCENARIOS: dict[str, Scenario] = {s.name: s for s in (
              {"fov_deg": 70.0, "max_range": 6.0, "settle": 0.0, "graph_parallax_deg": 15.0,
               "sigma_v": 0.02, "sigma_w_deg": 2.0, "noise_per_second": True, "lm_every": 20.0,
               "drop_after": 30.0, "min_parallax_deg": 15.0, "nis_gate": 0.99, "ekf_init": "linear",
-              "ekf_second_order": True}, real_data=True),
+              "ekf_second_order": True,
+              "batch_starts": "grown,isam2"}, real_data=True),
+    Scenario("log", "a log of your own (--data FOLDER, the open format of docs/log-formats.md; the truth optional)",
+             LOG_DEFAULTS),
 )}
 
 
@@ -88,6 +99,7 @@ class OmniConfig(Config):
     start_time: float | None = None
     end_time: float | None = None
     odometry_between: str = "switch"
+    batch_starts: str = by_scenario("odometry,isam2")
 
     def __post_init__(self) -> None:
         if self.sigma_bearing_deg is None:
@@ -152,6 +164,7 @@ class OmniConfig(Config):
         require(self.wall_lines >= 0 and self.pillars >= 0 and self.wall_lines + self.pillars >= 2,
                 "need at least two landmarks (--wall-lines + --pillars)")
         require(self.dt <= 1.0 / self.bearing_rate, "--dt must not exceed the bearing period 1/--bearing-rate")
+        require(self.scenario != "log" or self.data is not None, "--scenario log needs --data FOLDER (a log folder)")
         require(not self.from_images or self.scenario == "paper",
                 "--from-images renders the simulation's round images: it needs --scenario paper")
         require(self.bad_frames >= 0, f"--bad-frames must be >= 0 (got {self.bad_frames})")
@@ -164,6 +177,11 @@ class OmniConfig(Config):
                 f"--lm-every must be >= 0 s (got {self.lm_every})")
         require(math.isfinite(self.huber) and self.huber >= 0.0, f"--huber must be >= 0 sigmas (got {self.huber})")
         require(self.ekf_init in ("ut", "linear"), f"--ekf-init must be ut or linear (got {self.ekf_init!r})")
+        starts = [n.strip() for n in self.batch_starts.split(",") if n.strip()]
+        require(starts and set(starts) <= set(BATCH_STARTS) and len(set(starts)) == len(starts),
+                f"--batch-starts must name one or more of {', '.join(BATCH_STARTS)}, each once "
+                f"(got {self.batch_starts!r})")
+        require("grown" not in starts or self.lm_every > 0.0, "--batch-starts grown needs --lm-every > 0")
         require(self.odometry_between in ODOMETRY_BETWEEN,
                 f"--odometry-between must be one of {', '.join(ODOMETRY_BETWEEN)} (got {self.odometry_between!r})")
         return self
@@ -197,7 +215,7 @@ OPTIONS: tuple[Option, ...] = (
     Option("graph_parallax_deg", "GTSAM: insert a landmark at this parallax, deg.", flag="--graph-parallax"),
     Option("relin_threshold", "iSAM2 relinearisation threshold."),
     Option("settle", "Errors count from this time on, s."),
-    Option("data", "mrclam: the dataset folder [default: <data root>/mrclam6].", Path),
+    Option("data", "mrclam: the dataset folder [default: <data root>/mrclam6]; log: the log folder.", Path),
     Option("robot", "mrclam: the robot, 1..5 where the folder has it.", int),
     Option("start_time", "mrclam: start this many seconds into the log."),
     Option("end_time", "mrclam: end this many seconds into the log."),
@@ -209,6 +227,8 @@ OPTIONS: tuple[Option, ...] = (
     Option("ekf_init", "EKF landmark init: ut (the paper's gate) | linear.", str),
     Option("ekf_second_order", "EKF: second-order bearing terms in the update.", bool,
            switch="--second-order/--first-order"),
+    Option("batch_starts", "gtsam-batch: start from each of these, keep the lowest cost on the data: "
+           "odometry, grown (the graph grown with --lm-every), isam2, ekf (their answers).", str),
     Option("huber", "GTSAM: Huber threshold on bearing factors (0 = off)."),
     Option("from_images", "paper: render round images and estimate from their bearings.", bool,
            switch="--from-images/--from-bearings"),

@@ -33,7 +33,8 @@ class SlamEstimate:
     (:class:`~workbench.estimation.consistency.Innovations`, one row a bearing it was handed: the
     truth-free NIS, whiteness and likelihood read them). ``smoothed (E, 3)``: a smoother's whole
     trajectory as it holds it at the end (iSAM2's final estimate, at ``steps``), beside ``pose``,
-    what it knew at each step.
+    what it knew at each step. ``start``: where an estimator that can start from more than one
+    place started (the batch's winner by its cost on the data), ``start_costs`` each start's cost.
     """
 
     name: str = ""
@@ -51,6 +52,8 @@ class SlamEstimate:
     attempts: list = field(default_factory=list)
     smoothed: np.ndarray | None = None  # (E, 3) the whole trajectory as held at the end
     innovations: Innovations | None = None  # a filter's innovations of the bearings, for its truth-free checks
+    start: str = ""  # where it started, if it chose among starts (by its cost on the data)
+    start_costs: dict[str, float] = field(default_factory=dict)  # each start's cost
 
     @property
     def gated(self) -> int:

@@ -29,7 +29,7 @@ def ekf_paper(data: OmniData, cfg: OmniConfig, ctx: RunContext) -> SlamEstimate:
 def ekf_clone(data: OmniData, cfg: OmniConfig, ctx: RunContext) -> SlamEstimate:
     from workbench.experiments.omni import ekf
 
-    return ekf.run(data, cfg, "clone", "ekf", ctx.record)
+    return ctx.shared("ekf", lambda: ekf.run(data, cfg, "clone", "ekf", ctx.record))
 
 
 def keyframes(data: OmniData, cfg: OmniConfig, ctx: RunContext):
@@ -42,13 +42,25 @@ def keyframes(data: OmniData, cfg: OmniConfig, ctx: RunContext):
 def isam2(data: OmniData, cfg: OmniConfig, ctx: RunContext) -> SlamEstimate:
     from workbench.experiments.omni import graph
 
-    return graph.isam2(data, cfg, keyframes(data, cfg, ctx), map_every=1.0 if ctx.record else math.inf)
+    kf = keyframes(data, cfg, ctx)
+    return ctx.shared("isam2", lambda: graph.isam2(data, cfg, kf, map_every=1.0 if ctx.record else math.inf))
 
 
 def batch(data: OmniData, cfg: OmniConfig, ctx: RunContext) -> SlamEstimate:
+    """The batch from each start ``--batch-starts`` names (an estimator's answer is made once a
+    run, shared with that estimator's row), keeping the one of lowest cost on the data."""
     from workbench.experiments.omni import graph
 
-    return graph.batch(data, cfg, keyframes(data, cfg, ctx))
+    kf = keyframes(data, cfg, ctx)
+    others = {"isam2": isam2, "ekf": ekf_clone}
+    starts = [graph.start_from(name, others[name](data, cfg, ctx), data, kf) if name in others
+              else graph.own_start(data, cfg, kf, name) for name in batch_starts(cfg)]
+    return graph.batch(data, cfg, kf, starts)
+
+
+def batch_starts(cfg: OmniConfig) -> list[str]:
+    """The starts ``--batch-starts`` names, in order (the first wins a tie)."""
+    return [n.strip() for n in cfg.batch_starts.split(",") if n.strip()]
 
 
 TABLE: dict[str, Estimator] = table(

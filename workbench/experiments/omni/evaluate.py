@@ -59,12 +59,22 @@ def pose_nees(err: np.ndarray, cov: np.ndarray) -> np.ndarray:
     return out
 
 
+TRUTH_COVERAGE = 0.9
+"""The share of the grid's steps with a true pose that the Cramér-Rao bounds need."""
+
+
 def bounds(data: OmniData, cfg: OmniConfig, keyframes: graph.Keyframes | None = None) -> dict:
     """The run's Cramér-Rao variances (:func:`.bounds.variances`): per delay (0 filtering, inf
     smoothing) position and heading at every grid step, and the map; none where the bearings come
-    from images (their noise is the image stage's, not the model's) or the log has no truth."""
-    if cfg.from_images or not np.isfinite(data.truth[data.grid]).all(axis=1).any():
-        return {}  # (a log without its truth: the bound is at the truth)
+    from images (their noise is the image stage's, not the model's) or the log's truth is not a
+    track: the bound is linearised at the true poses, so it needs them (heading too) at
+    ``TRUTH_COVERAGE`` of the grid's steps at least (MRCLAM robot 4's short Vicon gaps are
+    interpolated: :func:`.bounds._truth`); a sparse fix now and then, or positions alone, gives none;
+    nor does a map without the true place of every landmark seen."""
+    if cfg.from_images or np.isfinite(data.truth[data.grid]).all(axis=1).mean() < TRUTH_COVERAGE:
+        return {}
+    if not np.isfinite(data.landmarks[np.unique(data.meas_lm)]).all():
+        return {}
     kf = keyframes if keyframes is not None else graph.keyframes(data, cfg)
     return omni_bounds.variances(data, kf, {0.0, float("inf")})
 

@@ -16,6 +16,7 @@ from workbench.estimation.alignment import umeyama
 from workbench.experiments import truthfree
 from workbench.experiments.metric import Metric, MetricContext, Values
 from workbench.experiments.omni import evaluate
+from workbench.experiments.omni.config import BATCH_STARTS
 from workbench.experiments.omni.estimate import SlamEstimate
 from workbench.experiments.omni.scenario import OmniData
 
@@ -133,6 +134,20 @@ def gated(data: OmniData, est: SlamEstimate) -> Values:
     return Values([est.gated])
 
 
+def _started(where: str):
+    def started(data: OmniData, est: SlamEstimate) -> Values | None:
+        """1 if the estimator started from ``where`` (it chose by its cost on the data)."""
+        return Values([float(est.start == where)]) if est.start else None
+
+    started.__name__ = f"started_{where}"
+    return started
+
+
+def start_cost(data: OmniData, est: SlamEstimate) -> Values | None:
+    """The winning start's cost on the data (:func:`.graph.robust_cost`)."""
+    return Values([est.start_costs[est.start]]) if est.start else None
+
+
 def _aligned(data: OmniData, est: SlamEstimate, ctx: MetricContext):
     def make():
         truth, pose = data.truth[data.grid], _pose(data, est, ctx)[0]
@@ -247,6 +262,11 @@ METRICS: tuple[Metric, ...] = (
     Metric("failures", failures, "", "rejected updates, summed over runs", reduce="sum", across="sum", fmt=".0f"),
     Metric("bearings_gated", gated, "", "bearings a gate left out (misreads, outliers), summed over runs",
            reduce="sum", across="sum", fmt=".0f"),
+    *(Metric(f"started_{where}", _started(where), "", f"runs that started from {where} (the lowest cost on the "
+             "data among the starts tried)", reduce="sum", across="sum", truth_free=True, fmt=".0f")
+      for where in BATCH_STARTS),
+    Metric("start_cost", start_cost, "", "the winning start's robust cost on the data (truncated least squares), "
+           "mean over runs", reduce="mean", across="mean", truth_free=True),
     Metric("aligned_position_rmse", aligned_position, "m", "position error after the best rigid alignment "
            "(evo_ape -a), RMS"),
     Metric("aligned_heading_rmse", aligned_heading, "deg", "heading error after the best rigid alignment, RMS"),

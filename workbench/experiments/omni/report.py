@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from workbench.experiments import markdown
 from workbench.experiments.markdown import number as _f
+from workbench.experiments.omni.config import BATCH_STARTS
 from workbench.experiments.omni.metrics import BOUNDS, METRICS, TABLE
 
 PAPER_CLAIMS = ("paper's claims (simulation): position error < 0.5 m, heading error < 1 deg; "
@@ -41,6 +42,10 @@ def table(stats: dict) -> str:
             bits.append(f"mean NEES inside the band at {100 * e['anees_inside_band']:.0f} % of steps")
         if e.get("failures"):
             bits.append(f"{e['failures']:.0f} rejected update(s)")
+        won = {w: e[f"started_{w}"] for w in BATCH_STARTS if e.get(f"started_{w}")}
+        if won:
+            bits.append("started from " + ", ".join(f"{w} in {n:.0f}" for w, n in won.items())
+                        + f" of {stats['runs']} run(s) (of the starts tried, the lowest cost on the data)")
         if e.get("bearings_gated"):
             bits.append(f"{e['bearings_gated']:.0f} bearing(s) left out by the gate (misreads, outliers)")
         lines.append(f"- {name}: " + "; ".join(bits))

@@ -46,6 +46,10 @@ def with_stage(cfg: OmniConfig, run: int, record: bool = False) -> tuple[OmniDat
         from workbench.experiments.omni import real
 
         data = real.load(cfg)
+    elif cfg.scenario == "log":
+        from workbench.experiments.omni import log
+
+        data = log.read(cfg.data, cfg)
     else:
         data = simulate(cfg, np.random.default_rng([cfg.seed, run]))
     if cfg.from_images:
@@ -67,3 +71,10 @@ def run_once(cfg: OmniConfig, run: int, estimators: list[Estimator], record: boo
 
     data, stage = with_stage(cfg, run, record)
     return contract.run_estimators(EXPERIMENT, cfg, run, estimators, data, record, threads, images=stage)
+
+
+def write_log(data: OmniData, folder, force: bool = False) -> list:
+    """A dataset in the open log format (``--export-data``; :mod:`.log`)."""
+    from workbench.experiments.omni import log
+
+    return log.write(data, folder, force)

@@ -35,7 +35,7 @@ from scipy.interpolate import PchipInterpolator
 
 from workbench.errors import WorkbenchError
 from workbench.estimation.angles import wrap
-from workbench.experiments.sea.readers import csvfile
+from workbench.experiments import csvfile
 from workbench.paths import data_file
 
 DEFAULT_FILE = "ais/SolentAIS_20160112_130211.csv"

@@ -28,15 +28,14 @@ the line and the column, and nothing is written.
 
 from __future__ import annotations
 
-import json
 import math
 from pathlib import Path
 
 import numpy as np
 
 from workbench.errors import WorkbenchError, require
+from workbench.experiments import csvfile, logfiles
 from workbench.experiments.sea import geometry
-from workbench.experiments.sea.readers import csvfile
 from workbench.experiments.sea.scenario import SeaData
 
 FORMAT = 1
@@ -47,9 +46,6 @@ STEP_TOLERANCE = 1e-6
 
 def write(data: SeaData, folder: Path, force: bool = False) -> list[Path]:
     """The dataset as a log folder (CSV, every number as Python writes it back exactly)."""
-    from workbench.recording.stream import check_plain_output, write_text_atomic
-
-    folder = Path(folder)
     truth = np.isfinite(data.target).all(axis=1)
     files = {
         "observer.csv": (("t_s", "x_m", "y_m", "vx_mps", "vy_mps", "course_rad"),
@@ -63,14 +59,7 @@ def write(data: SeaData, folder: Path, force: bool = False) -> list[Path]:
     manifest = {"format": FORMAT, "experiment": "sea", "height_m": data.height, "sigma_azimuth_rad": data.sigma_alpha,
                 "sigma_elevation_rad": data.sigma_beta, "sigma_observer_m": data.sigma_observer,
                 "sigma_acc_mps2": data.sigma_acc, "dt_s": data.dt, "label": data.label}
-    paths = [folder / name for name in (*files, "manifest.json")]
-    for p in paths:
-        check_plain_output(p, force, "log file")
-    for name, (columns, rows) in files.items():
-        text = ",".join(columns) + "\n" + "".join(",".join(repr(float(v)) for v in row) + "\n" for row in rows)
-        write_text_atomic(folder / name, text, force)
-    write_text_atomic(folder / "manifest.json", json.dumps(manifest, indent=1) + "\n", force)
-    return paths
+    return logfiles.write(Path(folder), files, manifest, force)
 
 
 def read(folder: Path) -> SeaData:
@@ -79,8 +68,8 @@ def read(folder: Path) -> SeaData:
     require(folder.is_dir(), f"--data {folder}: not a log folder (it needs manifest.json, observer.csv, angles.csv)")
     repairs: dict[str, int] = {}
     m = _manifest(folder / "manifest.json")
-    obs = _table(folder, "observer", ("t_s", "course_rad"), repairs, optional=("x_m", "y_m", "lat_deg", "lon_deg",
-                                                                                 "vx_mps", "vy_mps"))
+    obs = logfiles.table(folder, "observer", ("t_s", "course_rad"), repairs,
+                         optional=("x_m", "y_m", "lat_deg", "lon_deg", "vx_mps", "vy_mps"))
     t0 = obs["t_s"][0]
     t = obs["t_s"] - t0
     require(len(t) >= 3, f"{folder / 'observer.csv'}: fewer than three rows (steps)")
@@ -102,7 +91,7 @@ def read(folder: Path) -> SeaData:
         raise WorkbenchError(f"{folder / 'observer.csv'}: missing column(s) x_m, y_m (or lat_deg, lon_deg)")
     velocity = (np.column_stack([obs["vx_mps"], obs["vy_mps"]]) if "vx_mps" in obs and "vy_mps" in obs
                 else np.gradient(observer, dt, axis=0))
-    ang = _table(folder, "angles", ("t_s", "azimuth_rad", "elevation_rad"), repairs)
+    ang = logfiles.table(folder, "angles", ("t_s", "azimuth_rad", "elevation_rad"), repairs)
     steps = _steps(folder / "angles.csv", ang, t0, dt, len(t))
     for col, limit in (("azimuth_rad", math.pi), ("elevation_rad", math.pi / 2)):
         out = np.abs(ang[col]) > limit
@@ -115,7 +104,7 @@ def read(folder: Path) -> SeaData:
     seen = np.isfinite(alpha_meas)
     target, observer_true = np.full((len(t), 4), np.nan), observer.copy()
     if (folder / "truth.csv").exists() or (folder / "truth.parquet").exists():
-        tr = _table(folder, "truth", ("t_s", "x_m", "y_m", "vx_mps", "vy_mps"), repairs,
+        tr = logfiles.table(folder, "truth", ("t_s", "x_m", "y_m", "vx_mps", "vy_mps"), repairs,
                     optional=("observer_x_m", "observer_y_m"))
         at = _steps(folder / "truth.csv", tr, t0, dt, len(t), outside_ok=True)
         inside = at >= 0
@@ -137,81 +126,11 @@ def read(folder: Path) -> SeaData:
 
 
 def _manifest(path: Path) -> dict:
-    if not path.is_file():
-        raise WorkbenchError(f"{path}: missing (the log's manifest: {', '.join(MANIFEST)})")
-    try:
-        m = json.loads(path.read_text(encoding="utf-8-sig"))
-    except (ValueError, UnicodeDecodeError) as exc:
-        raise WorkbenchError(f"{path}: not JSON ({str(exc).splitlines()[0]})") from None
-    require(isinstance(m, dict), f"{path}: not a JSON object")
-    for key in MANIFEST:
-        v = m.get(key)
-        require(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) and v >= 0,
-                f"{path}: {key} must be a non-negative number, got {v!r}")
-    require(m["height_m"] > 0 and m["sigma_azimuth_rad"] > 0 and m["sigma_elevation_rad"] > 0,
-            f"{path}: height_m and the angles' sigmas must be positive")
+    m = logfiles.manifest(path, MANIFEST, positive=("height_m", "sigma_azimuth_rad", "sigma_elevation_rad"))
     dt = m.get("dt_s")
     require(dt is None or (isinstance(dt, (int, float)) and math.isfinite(dt) and dt > 0),
             f"{path}: dt_s must be a positive number, got {dt!r}")
     return m
-
-
-def _table(folder: Path, name: str, columns: tuple[str, ...], repairs: dict, optional: tuple[str, ...] = ()) -> dict:
-    """A CSV (or Parquet) table's columns as float arrays, in time order (repairs counted), with
-    each row's line in the file (``lines``)."""
-    parquet, path = folder / f"{name}.parquet", folder / f"{name}.csv"
-    if parquet.exists() and not path.exists():
-        return _parquet(parquet, columns, optional)
-    if not path.is_file():
-        raise WorkbenchError(f"{path}: missing")
-    import csv
-
-    with open(path, newline="", encoding="utf-8-sig") as fh:
-        header = [h.strip() for h in next(csv.reader(fh), [])]
-    present = [c for c in optional if c in header]
-
-    def parse(record: dict[str, str]) -> tuple:
-        out = []
-        for c in (*columns, *present):
-            try:
-                out.append(csvfile.finite(record[c]))
-            except ValueError as exc:
-                raise ValueError(f"column {c}: {exc}") from None
-        return tuple(out)
-
-    rows, lines = csvfile.read_rows(path, columns, parse, name, repairs)
-    table = np.array(rows, float).reshape(len(rows), -1)
-    order = csvfile.in_order(path, table[:, 0], lines, 1.0, name, repairs)
-    table, lines = table[order], np.asarray(lines)[order]
-    keep = csvfile.last_of_repeats(table[:, 0])
-    if not keep.all():
-        csvfile.count(repairs, f"{name}_repeated_stamps", int((~keep).sum()))
-        csvfile.say(path, f"{int((~keep).sum())} repeated time stamp(s): the last row of each kept")
-    out = {c: table[keep, i] for i, c in enumerate((*columns, *present))}
-    out["lines"] = lines[keep]
-    return out
-
-
-def _parquet(path: Path, columns: tuple[str, ...], optional: tuple[str, ...]) -> dict:
-    import pyarrow.parquet as pq
-
-    table = pq.read_table(path)
-    missing = [c for c in columns if c not in table.column_names]
-    require(not missing, f"{path}: missing column(s) {', '.join(missing)} (its columns: "
-                         f"{', '.join(table.column_names)[:120]})")
-    require(table.num_rows > 0, f"{path}: no rows")
-    out = {}
-    for c in (*columns, *[c for c in optional if c in table.column_names]):
-        v = np.asarray(table[c].to_numpy(zero_copy_only=False), float)
-        if not np.isfinite(v).all():
-            raise WorkbenchError(f"{path}, row {int(np.flatnonzero(~np.isfinite(v))[0]) + 1}, column {c}: "
-                                 "not a finite number")
-        out[c] = v
-    back = np.flatnonzero(np.diff(out["t_s"]) <= 0)
-    if back.size:
-        raise WorkbenchError(f"{path}, row {int(back[0]) + 2}, column t_s: times out of order or repeated")
-    out["lines"] = np.arange(2, table.num_rows + 2)
-    return out
 
 
 def _steps(path: Path, table: dict, t0: float, dt: float, n: int, outside_ok: bool = False) -> np.ndarray:
