@@ -12,6 +12,7 @@ import pytest
 from launcher import DATA, wb
 
 import workbench
+from workbench.recording import blueprints, readback
 
 ALL = "odometry,ekf-paper,ekf,isam2,gtsam-batch"
 
@@ -74,6 +75,18 @@ def test_without_truth_with_a_sparse_one_and_without_landmark_ids(tmp_path):
     stats = json.loads(m.read_text())["estimators"]
     assert stats["ekf"]["position_rmse"] is None and stats["ekf"]["anees"] is None
     assert stats["ekf"]["consistent_without_truth"] is not None
+    # the recording's reference is the smoother: each estimate's departure from it, and each causal
+    # estimator's disagreement with it, named so
+    names = [v.name for v in blueprints.layout(out).views()]
+    assert any(n.startswith("departure from gtsam-batch, position (m)") for n in names)
+    assert not any(n.startswith("position error") for n in names)
+    verdict = next(n for n in names if n.startswith("disagreement with gtsam-batch (3 dof)"))
+    failing = sorted(k for k, e in stats.items() if e.get("consistent_without_truth") is False)
+    assert "ekf-paper" in failing and "; NOT consistent: " + ", ".join(failing) in verdict
+    t, d = readback.series(out, "/errors/position/ekf")
+    ekf, ref = res.estimates["ekf"], res.estimates["gtsam-batch"]
+    want = np.hypot(*(ref.pose[:, :2] - ekf.pose[np.searchsorted(ekf.steps, ref.steps), :2]).T)
+    assert len(d) == len(ref.steps) and np.allclose(d, want, atol=1e-9)
     # the survey still scores the map
     assert stats["gtsam-batch"]["map_rmse"] == pytest.approx(res.metrics["estimators"]["gtsam-batch"]["map_rmse"],
                                                             rel=1e-6)

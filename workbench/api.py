@@ -143,10 +143,10 @@ def run(experiment: str | Experiment, scenario: str | None = None, *, config: An
     table = exp.table(stats)
     if live is not None:
         exp.record_runs(live, first, summaries, table)
-        live.send_blueprint(exp.blueprint(first, summaries), make_active=True, make_default=True)
+        live.send_blueprint(exp.blueprint(first, summaries, stats), make_active=True, make_default=True)
         live.flush()
     if out_path is not None:
-        with stream.recording(out_path, exp.name, cfg.to_json(), cfg.seed, exp.blueprint(first, summaries),
+        with stream.recording(out_path, exp.name, cfg.to_json(), cfg.seed, exp.blueprint(first, summaries, stats),
                               metrics=stats, force=force) as rec:
             exp.record(rec, first, summaries, table)
         stats["recording"] = str(out_path)

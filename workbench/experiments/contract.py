@@ -339,10 +339,17 @@ class Experiment:
                              tuple(self._optional("metrics", "BOUNDS", ())))
 
     # --- record
-    def blueprint(self, first: Any, summaries: list[Any]) -> Any:
+    def blueprint(self, first: Any, summaries: list[Any], stats: Mapping | None = None) -> Any:
         """The recording's default layout for run 0, fitted to what it will show: run 0 and its
-        evaluation ``summaries[0]``, the curves over all runs (``record.layout``)."""
-        return self.role("record").layout(first, summaries)
+        evaluation ``summaries[0]``, the curves over all runs (``record.layout``); ``stats``, the
+        metrics once every run is in, to a ``layout`` that takes them (its views' titles then
+        name the estimators that fail their consistency tests)."""
+        import inspect
+
+        layout = self.role("record").layout
+        if stats is not None and "stats" in inspect.signature(layout).parameters:
+            return layout(first, summaries, stats=stats)
+        return layout(first, summaries)
 
     def record(self, rec: Any, first: Any, summaries: list[Any], table: str) -> None:
         """Draw run 0 and the curves over runs: :meth:`record_run` then :meth:`record_runs`."""

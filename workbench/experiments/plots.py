@@ -138,6 +138,14 @@ def narrow_tables(markdown: str, columns: int = 5) -> str:
     return "\n".join(out)
 
 
+def flagged(title: str, stats: Mapping | None, truth: bool) -> str:
+    """A view's title with the estimators that fail their consistency tests (``truth``: with the
+    truth, the NEES; else without it, :func:`.markdown.verdicts`) named after it."""
+    key = "consistent_with_truth" if truth else "consistent_without_truth"
+    failing = [n for n, e in (stats or {}).get("estimators", {}).items() if e.get(key) is False]
+    return title + (f"; NOT consistent: {', '.join(failing)}" if failing else "")
+
+
 def how_to_read(first: Any, truth: str) -> list[str]:
     """The head of a recording's "how to read" note: run 0 drawn in full, the time line, and each
     estimator's colour in words (``truth``: how the truth is drawn)."""

@@ -29,15 +29,23 @@ WHITE_MAX = 0.15
 each is outside with probability 0.05: 4 or more of 20 has probability 0.016)."""
 
 
+def smoother(estimators: dict, estimates: dict, besides: str | None = None) -> str | None:
+    """The run's smoother: the first estimator of the run (``estimators`` by name, those with an
+    answer in ``estimates``) that uses the whole run and gives covariances, ``besides`` aside.
+    Without truth it is the reference: each estimate's departure from it is what the recordings
+    draw, and a causal estimator's disagreement with it a test."""
+    return next((n for n, e in estimators.items() if n != besides and n in estimates and not e.causal
+                 and e.covariances and e.delay == float("inf")), None)
+
+
 def reference(ctx) -> str | None:
     """The run's smoother, which a causal estimator is compared with (:func:`~workbench.estimation.
-    consistency.disagreement`): the first estimator of the run that uses the whole run and gives
-    covariances, itself aside; None for a smoother or an estimator without covariances."""
+    consistency.disagreement`): :func:`smoother`, itself aside; None for a smoother or an
+    estimator without covariances."""
     me = ctx.estimator
     if me is None or not me.causal or not me.covariances:
         return None
-    return next((n for n, e in ctx.estimators.items() if n != ctx.name and n in ctx.estimates and not e.causal
-                 and e.covariances and e.delay == float("inf")), None)
+    return smoother(ctx.estimators, ctx.estimates, ctx.name)
 
 
 def _innovations(est) -> consistency.Innovations | None:

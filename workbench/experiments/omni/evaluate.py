@@ -13,8 +13,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from workbench.estimation import metrics
+from workbench.estimation import consistency, metrics
 from workbench.estimation.angles import wrap
+from workbench.experiments import truthfree
 from workbench.experiments.contract import RunSummary as Summary
 from workbench.experiments.omni import bounds as omni_bounds
 from workbench.experiments.omni import graph
@@ -93,22 +94,39 @@ class RunSummary(Summary):
     delays: dict[str, float] = field(default_factory=dict)  # each estimator's delay (its bound)
     repairs: dict = field(default_factory=dict)  # what the real data needed to be read (omni.real)
     bounds: dict = field(default_factory=dict)  # delay -> {position, heading} (G,) variances; "map" (N,)
+    reference: str | None = None  # no truth: ``errors`` are departures from this smoother, ``nees`` disagreements
 
 
 def summarise(result: RunResult, cfg: OmniConfig, run: int) -> RunSummary:
-    """Errors, own sigmas and NEES on the grid (signed: what the recording draws), the bounds."""
+    """Errors, own sigmas and NEES on the grid (signed: what the recording draws), the bounds.
+
+    A log without the robot's truth has the run's smoother as the reference instead
+    (:func:`.truthfree.smoother`): ``errors`` are each estimate's departure from it (the smoother's
+    pose minus the estimate's) and ``nees`` each causal estimator's disagreement with it
+    (:func:`~workbench.estimation.consistency.disagreement`, 3 dof, chi-square where both are
+    consistent): where a filter and the smoother part ways, with no truth."""
     data, grid = result.data, result.grid
     truth = data.truth[grid]
+    reference = None
+    if not np.isfinite(truth).any():
+        reference = truthfree.smoother(result.estimators, result.estimates)
+    ref = on_grid(result.estimates[reference], grid) if reference is not None else None
     errs, sig, nees = {}, {}, {}
     for name, est in result.estimates.items():
         pose, cov = on_grid(est, grid)
-        errs[name] = e = pose_errors(truth, pose)
         sig[name] = np.sqrt(np.clip(np.diagonal(cov, axis1=1, axis2=2), 0.0, None))
-        nees[name] = pose_nees(e, cov)
+        if ref is None:
+            errs[name] = e = pose_errors(truth, pose)
+            nees[name] = pose_nees(e, cov)
+        else:
+            errs[name] = pose_errors(ref[0], pose)
+            causal = name in result.estimators and result.estimators[name].causal
+            nees[name] = (consistency.disagreement(pose, cov, *ref, angles=(2,)) if causal and name != reference
+                          else np.full(len(grid), np.nan))
     delays = {n: result.estimators[n].delay for n in result.estimates if n in result.estimators}
     crb = result.shared("bounds", lambda: bounds(data, cfg, result.keyframes))
     return RunSummary(run, data.t[grid], errs, sig, nees, result.images.stats if result.images is not None else None,
-                      delays, dict(data.repairs or {}), crb, failed=dict(result.failed))
+                      delays, dict(data.repairs or {}), crb, reference, failed=dict(result.failed))
 
 
 def bound_kind(delay: float) -> str:

@@ -101,12 +101,16 @@ def _switch_curves(d) -> dict[str, views.Curves]:
 
 
 def blueprint(names: list[str], scene: np.ndarray, curves: dict[str, views.Curves], with_images: bool = False,
-              span: tuple[float, float] = (0.0, 500.0), extra: rrb.Vertical | None = None) -> rrb.Blueprint:
+              span: tuple[float, float] = (0.0, 500.0), extra: rrb.Vertical | None = None,
+              reference: str | None = None, stats: dict | None = None) -> rrb.Blueprint:
     """Maps in a grid on the left, each top-down over ``scene`` (points, m), one per estimator
     (and the round camera image, when there is one); errors, sigmas, NEES and the Monte Carlo
     curves on the right in named tabs, every plot on the whole run ``span`` with its axis and
     legend fitted to its ``curves`` (one diverging estimator does not flatten the others); ``extra``:
-    the "metrics" tab. The legend is in the first plot of each tab: the colours are the same below it."""
+    the "metrics" tab. The legend is in the first plot of each tab: the colours are the same below it.
+    ``reference``: a log without truth, whose run-0 plots are each estimate's departure from this
+    smoother and each causal one's disagreement with it; ``stats``: the metrics, whose failed
+    consistency verdicts the NEES and disagreement views name."""
 
     def plot(origin: str, name: str, legend: bool = True) -> rrb.TimeSeriesView:
         return views.plot(origin, name, span, curves.get(origin), legend=legend)
@@ -116,12 +120,21 @@ def blueprint(names: list[str], scene: np.ndarray, curves: dict[str, views.Curve
     if with_images:
         panes.insert(0, rrb.Spatial2DView(origin="/camera", name="round image, detected lines"))
     maps = rrb.Grid(*panes, name="maps")
-    one_run = rrb.Vertical(
-        plot("/errors/position", "position error (m)"),
-        plot("/errors/heading", "heading error (deg)", legend=False),
-        plot("/nees", "pose NEES (3 dof), grey: 95 % band", legend=False),
-        name="run 0",
-    )
+    if reference is None:
+        one_run = rrb.Vertical(
+            plot("/errors/position", "position error (m)"),
+            plot("/errors/heading", "heading error (deg)", legend=False),
+            plot("/nees", metric_plots.flagged("pose NEES (3 dof), grey: 95 % band", stats, True), legend=False),
+            name="run 0",
+        )
+    else:  # no truth: the smoother is the reference
+        one_run = rrb.Vertical(
+            plot("/errors/position", f"departure from {reference}, position (m)"),
+            plot("/errors/heading", f"departure from {reference}, heading (deg)", legend=False),
+            plot("/nees", metric_plots.flagged(f"disagreement with {reference} (3 dof), grey: 95 % band", stats,
+                                               False), legend=False),
+            name=f"departure from {reference} (run 0)",
+        )
     sigmas = [plot("/sigma/position", "own sigma, position (m)"),
               plot("/sigma/heading", "own sigma, heading (deg)", legend=False)]
     if "/odometry/switch" in curves:
@@ -131,10 +144,12 @@ def blueprint(names: list[str], scene: np.ndarray, curves: dict[str, views.Curve
     mc = rrb.Vertical(
         plot("/monte_carlo/position", "RMS position error over runs (m), grey: Cramér-Rao bounds"),
         plot("/monte_carlo/heading", "RMS heading error over runs (deg)", legend=False),
-        plot("/monte_carlo/nees", "ANEES over runs, grey: 95 % band", legend=False),
+        plot("/monte_carlo/nees", metric_plots.flagged("ANEES over runs, grey: 95 % band", stats, True),
+             legend=False),
         name="over runs",
     )
-    tabs = [one_run, sigmas, mc, extra] if extra is not None else [one_run, sigmas, mc]
+    tabs = [one_run, sigmas, *([mc] if reference is None else [])]  # (no truth: nothing to draw over runs)
+    tabs += [extra] if extra is not None else []
     return rrb.Blueprint(
         rrb.Horizontal(maps, rrb.Tabs(*tabs, rrb.TextDocumentView(origin="/summary", name="results"), name="plots"),
                        column_shares=[3, 2]),
@@ -142,13 +157,14 @@ def blueprint(names: list[str], scene: np.ndarray, curves: dict[str, views.Curve
     )
 
 
-def layout(first: RunResult, runs: list[RunSummary]) -> rrb.Blueprint:
+def layout(first: RunResult, runs: list[RunSummary], stats: dict | None = None) -> rrb.Blueprint:
     """The default layout: maps framed on the walls (the simulation) or the landmarks (MRCLAM)
-    and the true path; the plots fitted to their curves."""
+    and the true path; the plots fitted to their curves; the estimators that fail their
+    consistency tests (``stats``, once every run is in) named in the views that show the tests."""
     span = (float(runs[0].t[0]), float(runs[0].t[-1]))
     curves = plots(first, runs)
     return blueprint(list(first.estimates), scene(first), curves, first.images is not None, span,
-                     metric_plots.tab(curves, first.metrics, span, len(runs)))
+                     metric_plots.tab(curves, first.metrics, span, len(runs)), runs[0].reference, stats)
 
 
 def scene(first: RunResult) -> np.ndarray:
@@ -271,6 +287,15 @@ def record_runs(rec: rr.RecordingStream, first: RunResult, runs: list[RunSummary
     metric_plots.summary(rec, table_md + "\n\n" + how_to_read(first, len(runs)))
 
 
+def first_reference(first: RunResult) -> str | None:
+    """Run 0's reference where it has no truth of the robot: the run's smoother."""
+    from workbench.experiments import truthfree
+
+    if np.isfinite(first.data.truth[first.grid]).any():
+        return None
+    return truthfree.smoother(first.estimators, first.estimates)
+
+
 def how_to_read(first: RunResult, runs: int) -> str:
     """The note under the results table: what each view shows and how to read it."""
     one, many = metrics.chi2_band(3, 1), metrics.chi2_band(3, runs)
@@ -282,16 +307,23 @@ def how_to_read(first: RunResult, runs: int) -> str:
         "end, smoothed, is drawn paler), the bearings of the step as yellow rays, those its gate left out "
         "(misread barcodes, outliers) as red rays, and (the filters) the unscented-transform "
         "sigma points of each landmark initialisation try in orange.",
-        f"- run 0: position and heading error, and the pose NEES (3 dof) with its one-run 95 % band "
-        f"({one[0]:.2f}-{one[1]:.2f}); own sigmas: the standard deviations each estimator claims"
+        (f"- run 0: position and heading error, and the pose NEES (3 dof) with its one-run 95 % band "
+         f"({one[0]:.2f}-{one[1]:.2f})" if first_reference(first) is None else
+         f"- no truth of the robot: the run 0 tab shows, for each estimator, the smoother's ({first_reference(first)}) "
+         "pose minus its own (its departure from the smoother: where a filter and the smoother part ways), and each "
+         f"causal estimator's disagreement with the smoother, the difference weighted by the difference of their "
+         f"covariances (3 dof, inside its 95 % band {one[0]:.2f}-{one[1]:.2f} where both are consistent)")
+        + "; own sigmas: the standard deviations each estimator claims"
         + ("; below them (a real log), the heading sigma each odometry step adds where a logged command "
            "switched at a time the log does not say (its gaps): there the estimators lean on the bearings."
            if first.data.control_var is not None else "."),
-        f"- over runs ({runs} runs): RMS position and heading error at each step, and the ANEES with its 95 % band "
+        ("- no truth: nothing to draw over runs; the truth-free tests are in the results' Consistency lines and "
+         "the metrics tab." if first_reference(first) is not None else
+         f"- over runs ({runs} runs): RMS position and heading error at each step, and the ANEES with its 95 % band "
         f"({many[0]:.2f}-{many[1]:.2f}): inside it the covariance is consistent with the errors, above it the "
         "estimator is overconfident; beside the RMS errors the Cramér-Rao bounds of a filter (light grey) and a "
         "smoother (dark grey): no estimator can be below the one it is held to for long (the results' efficiency "
-        "is RMSE / bound).",
+        "is RMSE / bound)."),
         "- a plot's title names an estimator that is off its scale (its own values would flatten the others); "
         "the legend is in the first plot of each tab, the colours are the same below it.",
     ]

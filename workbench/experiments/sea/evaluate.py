@@ -15,7 +15,7 @@ import numpy as np
 
 from workbench.estimation import metrics
 from workbench.estimation.angles import to_arcmin, wrap
-from workbench.experiments import figures, metric
+from workbench.experiments import figures, metric, truthfree
 from workbench.experiments.contract import RunSummary as Summary
 from workbench.experiments.sea import bounds as sea_bounds
 from workbench.experiments.sea.config import ALL_SHIPS, SeaConfig
@@ -51,8 +51,8 @@ def summarise(result: RunResult, cfg: SeaConfig, run: int) -> RunSummary:
     data = result.data
     errs = {name: errors(data, e) for name, e in result.estimates.items()}
     reference = None
-    if not np.isfinite(data.target).any():  # a log without truth: what the run 0 plots show is each
-        reference = _smoother(result)        # estimate's departure from the run's smoother
+    if not np.isfinite(data.target).any():  # a log without truth: the run 0 plots show each estimate's
+        reference = truthfree.smoother(result.estimators, result.estimates)  # departure from the smoother
         if reference is not None:
             ref = result.estimates[reference]
             errs = {name: departures(ref, e) for name, e in result.estimates.items()}
@@ -84,12 +84,6 @@ def summarise(result: RunResult, cfg: SeaConfig, run: int) -> RunSummary:
                                 for d in {0.0, float("inf"), *delays.values()}}
     return RunSummary(run, errs, fc, unusable, seen, data.t, transient, simulated, image, delays, crb, data.ship,
                       data.label, dict(data.repairs or {}), reference, failed=dict(result.failed))
-
-
-def _smoother(result: RunResult) -> str | None:
-    """The run's smoother: the first estimator using the whole run that gives covariances."""
-    return next((n for n, e in result.estimators.items() if n in result.estimates and not e.causal
-                 and e.covariances and e.delay == float("inf")), None)
 
 
 def departures(reference: Estimate, est: Estimate) -> np.ndarray:

@@ -26,6 +26,7 @@ import rerun.blueprint as rrb
 from workbench.estimation import metrics
 from workbench.estimation.angles import to_arcmin
 from workbench.experiments import plots as metric_plots
+from workbench.experiments import truthfree
 from workbench.experiments.sea import metrics as sea_metrics
 from workbench.experiments.sea.evaluate import RunSummary, bound_variances
 from workbench.experiments.sea.run import RunResult
@@ -78,12 +79,12 @@ def plots(first: RunResult, runs: list[RunSummary]) -> dict[str, views.Curves]:
 
 def blueprint(curves: dict[str, views.Curves], images: bool = False, span: tuple[float, float] = (0.0, 72.0),
               scene: np.ndarray | None = None, extra: rrb.Vertical | None = None,
-              reference: str | None = None) -> rrb.Blueprint:
+              reference: str | None = None, stats: dict | None = None) -> rrb.Blueprint:
     """The top-down map on the left (framed on ``scene``, the observer's and the object's
     tracks); named tabs of angles and range, errors, the curves over runs and the results on
     the right; every plot opens on the whole run ``span``, its axis and legend fitted to its
     ``curves``; ``extra``: the "metrics" tab. The legend is in the first plot of each tab: the colours are the
-    same below it."""
+    same below it. ``stats``: the metrics, whose failed NEES verdicts the NEES view names."""
 
     def plot(origin: str, name: str, legend: bool = True) -> rrb.TimeSeriesView:
         return views.plot(origin, name, span, curves.get(origin), legend=legend)
@@ -104,11 +105,11 @@ def blueprint(curves: dict[str, views.Curves], images: bool = False, span: tuple
     )
     mc = rrb.Vertical(
         plot("/monte_carlo/position_rmse", "position RMSE over runs (m), grey: Cramér-Rao bounds"),
-        plot("/monte_carlo/nees", "NEES over runs (4 states), grey: 95 % band"),
+        plot("/monte_carlo/nees", metric_plots.flagged("NEES over runs (4 states), grey: 95 % band", stats, True)),
         name="over runs",
     )
-    tabs = [series, errors, mc, *([extra] if extra is not None else []),
-            rrb.TextDocumentView(origin="/summary", name="results")]
+    tabs = [series, errors, *([mc] if reference is None else []),  # (no truth: nothing to draw over runs)
+            *([extra] if extra is not None else []), rrb.TextDocumentView(origin="/summary", name="results")]
     scene = np.zeros((1, 2)) if scene is None else scene
     left: rrb.Container | rrb.SpaceView = views.top_down("/map", "map (top-down, m)", scene, margin=1.3)
     if images:
@@ -128,13 +129,15 @@ def blueprint(curves: dict[str, views.Curves], images: bool = False, span: tuple
     )
 
 
-def layout(first: RunResult, runs: list[RunSummary]) -> rrb.Blueprint:
-    """The default layout of a run's recording."""
+def layout(first: RunResult, runs: list[RunSummary], stats: dict | None = None) -> rrb.Blueprint:
+    """The default layout of a run's recording; ``stats`` (once every run is in): the estimators
+    that fail their consistency tests are named in the views' titles."""
     d = first.data
     span = (float(d.t[0]), float(d.t[-1]))
     curves = plots(first, runs)
     return blueprint(curves, images=first.images is not None, span=span, scene=scene(first),
-                     extra=metric_plots.tab(curves, first.metrics, span, len(runs)), reference=runs[0].reference)
+                     extra=metric_plots.tab(curves, first.metrics, span, len(runs)), reference=runs[0].reference,
+                     stats=stats)
 
 
 def scene(first: RunResult) -> np.ndarray:
@@ -188,6 +191,21 @@ def record_runs(rec: rr.RecordingStream, first: RunResult, runs: list[RunSummary
 def how_to_read(first: RunResult, runs: int) -> str:
     """The note under the results table: what each view shows and how to read it."""
     lo, hi = metrics.chi2_band(4, runs)
+    if not np.isfinite(first.data.target).any():  # a log without truth
+        ref = truthfree.smoother(first.estimators, first.estimates)
+        return "\n".join([
+            *metric_plots.how_to_read(first, "measured angles grey"),
+            "- map, top-down (x east, y north, m): the observer's path and camera (blue), the line of sight "
+            "(yellow, while the object is seen); each estimator's track, its current position, its 95 % covariance "
+            "ellipse and its l-step forecast.",
+            "- angles and range: azimuth alpha from the course and elevation beta below the horizon (arcmin), "
+            "horizontal range d (m), for the measurements and each estimator.",
+            f"- departure from {ref} (run 0): no truth, so the smoother ({ref}) minus each estimate in x, y (m) and "
+            "the angles (arcmin): where a filter and the smoother part ways. The truth-free tests (NIS, whiteness, "
+            "each causal estimator's disagreement with the smoother) are in the results' Consistency lines and, "
+            "over runs, in the metrics tab; with no truth there are no errors over runs to draw.",
+            "- a plot's title names an estimator that is off its scale (its own values would flatten the others); "
+            "the legend is in the first plot of each tab, the colours are the same below it."])
     lines = [
         *metric_plots.how_to_read(first, "truth white on the map, black in the plots; measured angles grey"),
         "- map, top-down (x east, y north, m): the observer's path and camera (blue), the object (white), "

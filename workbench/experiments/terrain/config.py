@@ -28,6 +28,8 @@ SCENARIOS: dict[str, Scenario] = {s.name: s for s in (
     Scenario("synthetic", "a synthetic terrain and texture under a simulated pair (1500 m, 150 mm, 65 % overlap)"),
     Scenario("ngi", "two real NGI aerial frames (Intergraph DMC, ~5 km up) and their DEM",
              {"size": "160x288", "radiometry": "local"}, real_data=True),
+    Scenario("log", "a pair of your own (--data FOLDER, the open format of docs/log-formats.md; the truth optional)",
+             {"radiometry": "local"}),
 )}
 MODES = ("common", "ii-only")
 DISTRIBUTIONS = ("uniform", "gaussian", "maximum")
@@ -160,6 +162,7 @@ class TerrainConfig(Config):
         require(self.features >= 20, f"--features must be at least 20 (got {self.features})")
         w, h = self.image_size
         require(w * h <= MAX_PIXELS, f"--size {self.size} is over {MAX_PIXELS} pixels")
+        require(self.scenario != "log" or self.data is not None, "--scenario log needs --data FOLDER (a log folder)")
         if self.scenario == "ngi":
             require(len(self.pair) == 2 and self.pair[0] != self.pair[1] and all(p in NGI_FRAMES for p in self.pair),
                     f"--pair must name two different frames of {', '.join(NGI_FRAMES)}")
@@ -190,7 +193,7 @@ OPTIONS: tuple[Option, ...] = (
     Option("relief", "synthetic: standard deviation of the terrain heights, m."),
     Option("texture_scale", "synthetic: correlation length of the texture, m."),
     Option("image_noise", "synthetic: image noise sigma (irradiance 0..1)."),
-    Option("data", "ngi: the folder [default: <data root>/ngi].", Path),
+    Option("data", "ngi: the folder [default: <data root>/ngi]; log: the log folder.", Path),
     Option("pair", "ngi: the two frames, image I first.", str, parse=split_list),
 )
 """The terrain experiment's own command-line options (the shared ones are the CLI's)."""

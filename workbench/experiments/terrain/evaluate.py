@@ -43,7 +43,7 @@ def summarise(res: RunResult, cfg: TerrainConfig, run: int) -> RunSummary:
     pos = {n: sc.position[1] - e.position[1] for n, e in res.estimates.items()}
     att = {n: wrap(sc.angles[1] - e.angles[1]) for n, e in res.estimates.items()}
     hit = hit_linear = None
-    if res.search is not None and res.search.kind == "grid":
+    if res.search is not None and res.search.kind == "grid" and np.isfinite(res.state).all():  # (a log: no truth)
         s = res.search
         spacing = np.ptp(s.centres, axis=0) / np.maximum(1, np.array([len(np.unique(c)) - 1 for c in s.centres.T]))
         searched = np.ptp(s.centres, axis=0) > 0

@@ -46,10 +46,18 @@ def dr_fraction(data: TerrainData, est: Estimate, ctx: MetricContext) -> Values:
     return Values([np.hypot(p[0], p[1]) / ctx.cfg.max_linear])
 
 
+def truth_known(scene: Any) -> bool:
+    """Whether the scene has its true orientation (a log may not): the ground errors and the
+    bounds are computed at it."""
+    return bool(np.isfinite(scene.position).all() and np.isfinite(scene.angles).all())
+
+
 def ground_errors(res: Any) -> dict[str, np.ndarray]:
     """Per-pixel ground error maps of image II's halftone model per estimate of a run (every pixel
-    for the recorded run, about 100 x 100 samples otherwise)."""
+    for the recorded run, about 100 x 100 samples otherwise); none without the truth."""
     sc = res.scene
+    if not truth_known(sc):
+        return {}
     step = 1 if res.record else max(1, min(sc.k.width, sc.k.height) // 100)
     truth = (sc.position[1], sc.angles[1])
     return {name: halftone.ground_error(sc.dem, sc.k, truth, (e.position[1], e.angles[1]), step)
@@ -63,7 +71,8 @@ def ground_maps(ctx: MetricContext) -> dict[str, np.ndarray]:
 
 def ground_rmse(data: TerrainData, est: Estimate, ctx: MetricContext) -> Values:
     """The halftone model's horizontal error over every pixel of image II (RMS)."""
-    return Values([halftone.rmse(ground_maps(ctx)[ctx.name])])
+    maps = ground_maps(ctx)
+    return Values([halftone.rmse(maps[ctx.name])]) if ctx.name in maps else None
 
 
 def nees(data: TerrainData, est: Estimate) -> Values | None:
@@ -88,6 +97,8 @@ def ba_bound(res: Any, cfg: TerrainConfig) -> dict[str, float]:
     from workbench.experiments.terrain import bounds
 
     est = res.estimates.get("gtsam-ba")
+    if not truth_known(res.scene):  # (its graph is linearised at the true orientation)
+        return {}
     return (bounds.bundle_adjustment(cfg, res.scene, est.extras) if est is not None else None) or {}
 
 
@@ -107,7 +118,10 @@ def cramer_rao(res: Any, cfg: TerrainConfig) -> dict[str, float]:
 
 def bound(ctx: MetricContext, est: Estimate) -> dict | None:
     """Image II's Cramér-Rao variances for this run (:mod:`.bounds`): the bundle adjustment's own
-    graph's for ``gtsam-ba`` where it has one, else the images' and the navigation prior's."""
+    graph's for ``gtsam-ba`` where it has one, else the images' and the navigation prior's; none
+    without the truth (the bounds are at the true orientation)."""
+    if not truth_known(ctx.result.scene):
+        return None
     if ctx.name == "gtsam-ba":
         ba = ctx.shared("bound_ba", lambda: ba_bound(ctx.result, ctx.cfg))
         if ba:

@@ -41,6 +41,7 @@ from workbench.errors import WorkbenchError
 from workbench.experiments.plots import narrow_tables
 from workbench.experiments.terrain.estimators import ITERATED, POSTERIOR, REFINED, SEARCH, TABLE
 from workbench.experiments.terrain.evaluate import RunSummary
+from workbench.experiments.terrain.metrics import truth_known
 from workbench.experiments.terrain.model import PREFERRED
 from workbench.experiments.terrain.record_ground import (
     _stride,
@@ -57,6 +58,7 @@ from workbench.experiments.terrain.record_scene import (
     footprint_bounds,
     ground_sample_distance,
     local_origin,
+    placement,
     record_baseline,
     record_cameras,
     record_dem,
@@ -168,19 +170,20 @@ def layout(first: RunResult, runs: list[RunSummary]) -> rrb.Blueprint:
 
 def record_run(rec: rr.RecordingStream, first: RunResult, zero: RunSummary) -> None:
     """Log run 0 (``zero`` is its evaluation): scene, cameras, the search, the baseline's
-    tie points, the halftone models and their ground error maps."""
-    sc = first.scene
-    origin = local_origin(sc)
+    tie points, the halftone models and their ground error maps. A log without the true
+    orientation places the frames (and frames the DEM) at the navigation's measured one."""
+    placed = placement(first)
+    origin = local_origin(placed)
     rec.log("/world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
-    bounds = record_dem(rec, sc, origin)
-    record_cameras(rec, first, origin)
+    bounds = record_dem(rec, placed, origin)
+    record_cameras(rec, first, origin, placed)
     if first.search is not None:
         record_search(rec, first, origin)
     record_baseline(rec, first, origin)
     record_halftones(rec, first, origin)
     for name, err in zero.ground_maps.items():
         record_error_map(rec, name, err)
-    record_orthophoto(rec, sc, first.estimates[_best(list(first.estimates))], bounds)
+    record_orthophoto(rec, placed, first.estimates[_best(list(first.estimates))], bounds)
     _measurements(rec, first, origin)
 
 
@@ -229,21 +232,24 @@ def measurements_markdown(first: RunResult) -> str:
         m = model.from_run(first)
         found = measure.examples(m)
         sc = first.scene
-        truth = measure.examples(model.Model("truth", sc.dem, sc.k, sc.position[1], sc.angles[1], None))
+        truth = (measure.examples(model.Model("truth", sc.dem, sc.k, sc.position[1], sc.angles[1], None))
+                 if truth_known(sc) else None)
     except WorkbenchError:
         return ""
     rows = ["", f"**halftone model** (image II under {m.estimator}'s orientation, model {m.model_id}; "
             "`workbench measure` reads its files): a few measurements, +- the orientation covariance's sigma",
             "", "| measurement | value | sigma | true orientation | error / sigma |", "|---|---|---|---|---|"]
-    for a, b in zip(found, truth, strict=True):
-        for q, r in zip(a.quantities, b.quantities, strict=True):
-            z = f"{(q.value - r.value) / q.sigma:+.2f}" if q.sigma else "-"
+    for a, b in zip(found, truth or [None] * len(found), strict=True):
+        for j, q in enumerate(a.quantities):
+            r = b.quantities[j] if b is not None else None
+            z = f"{(q.value - r.value) / q.sigma:+.2f}" if q.sigma and r is not None else "-"
             sig = f"{q.sigma:.3g}" if q.sigma is not None else "-"
-            rows.append(f"| {a.kind} {q.name} ({q.unit}) | {q.value:.6g} | {sig} | {r.value:.6g} | {z} |")
+            rows.append(f"| {a.kind} {q.name} ({q.unit}) | {q.value:.6g} | {sig} | "
+                        f"{'-' if r is None else f'{r.value:.6g}'} | {z} |")
     return "\n".join(rows) + "\n"
 
 
 def record_runs(rec: rr.RecordingStream, first: RunResult, runs: list[RunSummary], table_md: str) -> None:
     """Log the results table (the Monte Carlo statistics) and how to read the recording."""
-    text = narrow_tables(table_md) + "\n" + legend(first, local_origin(first.scene)) + measurements_markdown(first)
+    text = narrow_tables(table_md) + "\n" + legend(first, local_origin(placement(first))) + measurements_markdown(first)
     rec.log("/summary", rr.TextDocument(text, media_type=rr.MediaType.MARKDOWN), static=True)

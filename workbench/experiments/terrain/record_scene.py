@@ -27,6 +27,19 @@ def color(first: RunResult, name: str) -> tuple[int, int, int]:
     return est.color if est is not None else (200, 200, 200)
 
 
+def placement(first: RunResult) -> Scene:
+    """The scene as the recording places it: at its true orientation, or, a log without one, at
+    the navigation's measured orientation (the frames, the footprints the DEM is cut to)."""
+    from dataclasses import replace
+
+    from workbench.experiments.terrain.metrics import truth_known
+
+    sc = first.scene
+    if truth_known(sc):
+        return sc
+    return replace(sc, position=first.measured.position, angles=first.measured.angles)
+
+
 def local_origin(sc: Scene) -> np.ndarray:
     """Subtracted from every world position: zero for scenes near the origin (synthetic), else
     the cameras' mean position rounded to a kilometre (height kept)."""
@@ -85,9 +98,11 @@ def record_dem(rec: rr.RecordingStream, sc: Scene, origin: np.ndarray) -> tuple[
     return bounds
 
 
-def record_cameras(rec: rr.RecordingStream, first: RunResult, origin: np.ndarray) -> None:
-    """Both exposures' frusta for the truth (with the images) and every estimate, in their colours."""
-    sc = first.scene
+def record_cameras(rec: rr.RecordingStream, first: RunResult, origin: np.ndarray, placed: Scene | None = None
+                   ) -> None:
+    """Both exposures' frusta for the truth (with the images; a log without it: at ``placed``, the
+    measured orientation) and every estimate, in their colours."""
+    sc = placed if placed is not None else first.scene
     k = sc.k
     plane = 0.25 * (sc.position[0, 2] - sc.dem.mean_height)
     for i, ex in enumerate(("I", "II")):

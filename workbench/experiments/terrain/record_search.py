@@ -122,9 +122,10 @@ def record_search(rec: rr.RecordingStream, first: RunResult, origin: np.ndarray)
                                    radii=[draw.ui_points(1.5)], fill_mode="MajorWireframe"), static=True)
     rec.send_columns("/world/search/winner_cell", indexes=steps,
                      columns=rr.Boxes3D.columns(centers=g.measured - pose[best[change], :3]))
-    names = ["truth"] + [name for name in first.estimates if name != SEARCH]
-    poses = [estimate_errors(first, (first.scene.position, first.scene.angles))]
-    poses += [estimate_errors(first, first.estimates[name]) for name in names[1:]]
+    known = bool(np.isfinite(first.scene.position).all())  # (a log may have no truth)
+    names = ["truth"] * known + [name for name in first.estimates if name != SEARCH]
+    poses = [estimate_errors(first, (first.scene.position, first.scene.angles))] * known
+    poses += [estimate_errors(first, first.estimates[name]) for name in names[known:]]
     rec.log("/world/search/markers", rr.Points3D(g(np.stack(poses)), radii=[2.0 * radius], labels=names,
                                                  colors=[color(first, name) for name in names]), static=True)
     _functional(rec, first)

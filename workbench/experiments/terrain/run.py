@@ -53,7 +53,13 @@ class RunResult(contract.RunResult):
 
 
 def make_data(cfg: TerrainConfig, run: int) -> TerrainData:
-    """The run's scene, its true navigation errors and the measured orientation."""
+    """The run's scene, its true navigation errors and the measured orientation (a log: as it
+    gives them). The sampled hypotheses draw from their own stream, seeded by ``(seed, run, 1)``,
+    so a run written out and read back (:mod:`.log`) draws the same ones."""
+    if cfg.scenario == "log":
+        from workbench.experiments.terrain import log
+
+        return log.read(cfg.data, cfg, run)
     rng = np.random.default_rng([cfg.seed, run])
     if cfg.scenario == "ngi":
         from workbench.experiments.terrain import ngi
@@ -64,4 +70,11 @@ def make_data(cfg: TerrainConfig, run: int) -> TerrainData:
     state = navigation.draw_state(cfg, rng)
     pose_err = navigation.error_map(cfg.mode, scene.interval) @ state
     meas = Estimate(*navigation.measured(scene.position, scene.angles, pose_err))
-    return TerrainData(scene, meas, state, cfg.mode, rng.bit_generator.state)
+    return TerrainData(scene, meas, state, cfg.mode, np.random.default_rng([cfg.seed, run, 1]).bit_generator.state)
+
+
+def write_log(data: TerrainData, folder, force: bool = False) -> list:
+    """A dataset in the open log format (``--export-data``; :mod:`.log`)."""
+    from workbench.experiments.terrain import log
+
+    return log.write(data, folder, force)
