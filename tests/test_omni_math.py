@@ -455,6 +455,10 @@ def test_the_batch_recovers_from_a_wrong_start_by_its_cost():
     assert rms(stuck) > 10.0 and rms(alone) < 0.5  # measured: 84 m and 0.31 m
     assert both.start == "odometry" and both.start_costs["wrong"] > 10 * both.start_costs["odometry"]
     assert np.array_equal(both.pose, alone.pose)
+    # and the answer tests itself: its residuals' chi-square is far above its degrees of freedom in the
+    # wrong minimum, at them in the right one (the batch can tell it fell into a wrong basin)
+    (chi_stuck, dof), (chi, _) = stuck.fit, alone.fit
+    assert chi_stuck > 10 * dof and abs(chi / dof - 1) < 3 * np.sqrt(2 / dof)
     # the cost is the data's alone: the same for a start that ends in the same minimum
     assert both.start_costs["odometry"] == pytest.approx(alone.start_costs["odometry"])
 

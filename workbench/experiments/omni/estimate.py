@@ -54,6 +54,7 @@ class SlamEstimate:
     innovations: Innovations | None = None  # a filter's innovations of the bearings, for its truth-free checks
     start: str = ""  # where it started, if it chose among starts (by its cost on the data)
     start_costs: dict[str, float] = field(default_factory=dict)  # each start's cost
+    fit: tuple[float, int] | None = None  # a least-squares smoother's residual chi-square and its dof
 
     @property
     def gated(self) -> int:

@@ -143,6 +143,11 @@ def _started(where: str):
     return started
 
 
+def fit(data: OmniData, est: SlamEstimate) -> Values | None:
+    """A least-squares smoother's residual chi-square at its answer (:func:`.graph.fit`)."""
+    return None if est.fit is None else Values([est.fit[0]], dof=est.fit[1])
+
+
 def start_cost(data: OmniData, est: SlamEstimate) -> Values | None:
     """The winning start's cost on the data (:func:`.graph.robust_cost`)."""
     return Values([est.start_costs[est.start]]) if est.start else None
@@ -265,6 +270,9 @@ METRICS: tuple[Metric, ...] = (
     *(Metric(f"started_{where}", _started(where), "", f"runs that started from {where} (the lowest cost on the "
              "data among the starts tried)", reduce="sum", across="sum", truth_free=True, fmt=".0f")
       for where in BATCH_STARTS),
+    Metric("fit", fit, "", "a least-squares smoother's weighted squared residuals at its answer (odometry and the "
+           "bearings it kept), chi-square with the residuals less the unknowns; mean over runs (truth-free)",
+           reduce="mean", dimension=0, truth_free=True, label="fit chi2", fmt=".0f"),
     Metric("start_cost", start_cost, "", "the winning start's robust cost on the data (truncated least squares), "
            "mean over runs", reduce="mean", across="mean", truth_free=True),
     Metric("aligned_position_rmse", aligned_position, "m", "position error after the best rigid alignment "
