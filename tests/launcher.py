@@ -12,3 +12,34 @@ def wb(*args, cwd=None, timeout: int = 900) -> subprocess.CompletedProcess:
     """``python -m workbench ARGS`` in a fresh process; output captured as text."""
     return subprocess.run([sys.executable, "-m", "workbench", *args], capture_output=True, text=True,
                           cwd=cwd, timeout=timeout)
+
+
+def edit_line(text: str, number: int, change) -> str:
+    """``text`` with line ``number`` (1-based) split at commas, changed by ``change``, joined again."""
+    lines = text.splitlines()
+    lines[number - 1] = ",".join(change(lines[number - 1].split(",")))
+    return "\n".join(lines) + "\n"
+
+
+def bad_logs_say_one_line(experiment: str, folder, tmp_path, cases) -> None:
+    """Each ``(file, break, needles)``: a copy of the log ``folder`` with ``file`` broken (``break``
+    maps its text to the broken text; None deletes it) read by ``--scenario log``: exit code 2, one
+    line holding every needle, no traceback, no recording written."""
+    import shutil
+
+    for i, (name, breaks, needles) in enumerate(cases):
+        bad = tmp_path / f"bad{i}"
+        shutil.copytree(folder, bad)
+        if breaks is None:
+            (bad / name).unlink()
+        else:
+            text = (folder / name).read_text() if name.endswith((".csv", ".json")) else ""
+            (bad / name).write_text(breaks(text))
+        out = tmp_path / f"bad{i}.rrd"
+        r = wb(experiment, "--scenario", "log", "--data", str(bad), "--out", str(out))
+        said = r.stderr.strip()
+        assert r.returncode == 2 and "\n" not in said and "Traceback" not in said, (name, said)
+        assert all(n in said for n in needles), (i, name, said)
+        assert not out.exists()
+    r = wb(experiment, "--scenario", "log", "--out", str(tmp_path / "x.rrd"))
+    assert r.returncode == 2 and "--scenario log needs --data" in r.stderr

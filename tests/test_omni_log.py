@@ -9,7 +9,7 @@ import shutil
 
 import numpy as np
 import pytest
-from launcher import DATA, wb
+from launcher import DATA, bad_logs_say_one_line, edit_line, wb
 
 import workbench
 from workbench.recording import blueprints, readback
@@ -127,41 +127,24 @@ BAD = [  # (file, how to break it, what the one line must say)
     ("odometry.csv", lambda t: "", ["odometry.csv", "no header"]),
     ("odometry.csv", lambda t: t.splitlines()[0] + "\n", ["odometry.csv", "no rows"]),
     ("odometry.csv", lambda t: t.replace("steering_rad", "gamma"), ["odometry.csv", "missing column", "steering_rad"]),
-    ("odometry.csv", lambda t: _line(t, 5, lambda f: [f[0], "nan", *f[2:]]), ["odometry.csv", "line 5", "v_mps"]),
-    ("odometry.csv", lambda t: _line(t, 5, lambda f: [f[0], f[1], "inf"]), ["odometry.csv", "line 5", "steering"]),
-    ("odometry.csv", lambda t: _line(t, 40, lambda f: ["-9.0", *f[1:]]), ["odometry.csv", "line 40", "backwards"]),
+    ("odometry.csv", lambda t: edit_line(t, 5, lambda f: [f[0], "nan", *f[2:]]), ["odometry.csv", "line 5", "v_mps"]),
+    ("odometry.csv", lambda t: edit_line(t, 5, lambda f: [f[0], f[1], "inf"]), ["odometry.csv", "line 5", "steering"]),
+    ("odometry.csv", lambda t: edit_line(t, 40, lambda f: ["-9.0", *f[1:]]), ["odometry.csv", "line 40", "backwards"]),
     ("bearings.csv", lambda t: t.replace("bearing_rad", "angle"), ["bearings.csv", "missing column", "bearing_rad"]),
-    ("bearings.csv", lambda t: _line(t, 4, lambda f: [f[0], "3.5", f[2]]), ["bearings.csv", "line 4", "bearing_rad",
+    ("bearings.csv", lambda t: edit_line(t, 4, lambda f: [f[0], "3.5", f[2]]), ["bearings.csv", "line 4", "bearing_rad",
                                                                            "beyond"]),
-    ("bearings.csv", lambda t: _line(t, 4, lambda f: [f[0], f[1], "2.5"]), ["bearings.csv", "line 4", "landmark_id",
+    ("bearings.csv", lambda t: edit_line(t, 4, lambda f: [f[0], f[1], "2.5"]), ["bearings.csv", "line 4", "landmark_id",
                                                                            "not an integer"]),
-    ("bearings.csv", lambda t: _line(t, 4, lambda f: [f[0], f[1], "x"]), ["bearings.csv", "line 4", "landmark_id"]),
-    ("bearings.csv", lambda t: _line(t, 4, lambda f: [f[0], "", f[2]]), ["bearings.csv", "line 4", "bearing_rad"]),
+    ("bearings.csv", lambda t: edit_line(t, 4, lambda f: [f[0], f[1], "x"]), ["bearings.csv", "line 4", "landmark_id"]),
+    ("bearings.csv", lambda t: edit_line(t, 4, lambda f: [f[0], "", f[2]]), ["bearings.csv", "line 4", "bearing_rad"]),
     ("bearings.csv", lambda t: t + "1000.0,0.1,3\n", ["bearings.csv", "t_s", "outside the odometry"]),
     ("truth.csv", lambda t: t.splitlines()[0] + "\n1000.0,1,2,3\n", ["truth.csv", "covers none of the run"]),
     ("truth.csv", lambda t: t.replace("y_m", "north"), ["truth.csv", "missing column", "y_m"]),
-    ("landmarks.csv", lambda t: _line(t, 3, lambda f: ["1.5", *f[1:]]), ["landmarks.csv", "line 3", "landmark_id"]),
+    ("landmarks.csv", lambda t: edit_line(t, 3, lambda f: ["1.5", *f[1:]]), ["landmarks.csv", "line 3", "landmark_id"]),
 ]
-
-
-def _line(text: str, number: int, change) -> str:
-    lines = text.splitlines()
-    lines[number - 1] = ",".join(change(lines[number - 1].split(",")))
-    return "\n".join(lines) + "\n"
 
 
 def test_malformed_logs_are_one_line_and_exit_2(tmp_path):
     _, folder = _export(tmp_path, "paper", duration=20.0)
     assert len(BAD) == 20
-    for i, (name, breaks, needles) in enumerate(BAD):
-        bad = tmp_path / f"bad{i}"
-        shutil.copytree(folder, bad)
-        (bad / name).write_text(breaks((folder / name).read_text()))
-        out = tmp_path / f"bad{i}.rrd"
-        r = wb("omni", "--scenario", "log", "--data", str(bad), "--out", str(out))
-        said = r.stderr.strip()
-        assert r.returncode == 2 and "\n" not in said and "Traceback" not in said, (name, said)
-        assert all(n in said for n in needles), (i, name, said)
-        assert not out.exists()
-    r = wb("omni", "--scenario", "log", "--out", str(tmp_path / "x.rrd"))
-    assert r.returncode == 2 and "--scenario log needs --data" in r.stderr
+    bad_logs_say_one_line("omni", folder, tmp_path, BAD)

@@ -8,7 +8,7 @@ import shutil
 
 import numpy as np
 import pytest
-from launcher import DATA, wb
+from launcher import DATA, bad_logs_say_one_line, edit_line, wb
 
 import workbench
 from workbench.experiments import csvfile
@@ -94,41 +94,24 @@ BAD = [  # (file, how to break it, what the one line must say)
     ("observer.csv", lambda t: t.splitlines()[0] + "\n", ["observer.csv", "no rows"]),
     ("observer.csv", lambda t: t.replace("course_rad", "heading"), ["observer.csv", "missing column", "course_rad"]),
     ("observer.csv", lambda t: t.replace("x_m,y_m", "east,north"), ["observer.csv", "x_m, y_m"]),
-    ("observer.csv", lambda t: _line(t, 5, lambda f: [f[0], "nan", *f[2:]]), ["observer.csv", "line 5", "x_m"]),
-    ("observer.csv", lambda t: _line(t, 5, lambda f: [f[0], "inf", *f[2:]]), ["observer.csv", "line 5", "x_m"]),
-    ("observer.csv", lambda t: _line(t, 6, lambda f: [f[0], "1e3x", *f[2:]]), ["observer.csv", "line 6", "x_m"]),
-    ("observer.csv", lambda t: _line(t, 5, lambda f: ["0.4321", *f[1:]]), ["observer.csv", "line 5", "t_s",
+    ("observer.csv", lambda t: edit_line(t, 5, lambda f: [f[0], "nan", *f[2:]]), ["observer.csv", "line 5", "x_m"]),
+    ("observer.csv", lambda t: edit_line(t, 5, lambda f: [f[0], "inf", *f[2:]]), ["observer.csv", "line 5", "x_m"]),
+    ("observer.csv", lambda t: edit_line(t, 6, lambda f: [f[0], "1e3x", *f[2:]]), ["observer.csv", "line 6", "x_m"]),
+    ("observer.csv", lambda t: edit_line(t, 5, lambda f: ["0.4321", *f[1:]]), ["observer.csv", "line 5", "t_s",
                                                                           "off the uniform step"]),
-    ("observer.csv", lambda t: _line(t, 30, lambda f: ["-9.0", *f[1:]]), ["observer.csv", "line 30", "backwards"]),
+    ("observer.csv", lambda t: edit_line(t, 30, lambda f: ["-9.0", *f[1:]]), ["observer.csv", "line 30", "backwards"]),
     ("angles.csv", lambda t: t.replace("azimuth_rad", "bearing"), ["angles.csv", "missing column", "azimuth_rad"]),
-    ("angles.csv", lambda t: _line(t, 4, lambda f: [f[0], "3.5", f[2]]), ["angles.csv", "line 4", "azimuth_rad",
+    ("angles.csv", lambda t: edit_line(t, 4, lambda f: [f[0], "3.5", f[2]]), ["angles.csv", "line 4", "azimuth_rad",
                                                                          "beyond"]),
-    ("angles.csv", lambda t: _line(t, 4, lambda f: [f[0], f[1], "2.0"]), ["angles.csv", "line 4", "elevation_rad"]),
-    ("angles.csv", lambda t: _line(t, 4, lambda f: ["0.3333", *f[1:]]), ["angles.csv", "line 4", "t_s",
+    ("angles.csv", lambda t: edit_line(t, 4, lambda f: [f[0], f[1], "2.0"]), ["angles.csv", "line 4", "elevation_rad"]),
+    ("angles.csv", lambda t: edit_line(t, 4, lambda f: ["0.3333", *f[1:]]), ["angles.csv", "line 4", "t_s",
                                                                         "not a time of the observer"]),
-    ("angles.csv", lambda t: _line(t, 4, lambda f: [f[0], "", f[2]]), ["angles.csv", "line 4", "azimuth_rad"]),
+    ("angles.csv", lambda t: edit_line(t, 4, lambda f: [f[0], "", f[2]]), ["angles.csv", "line 4", "azimuth_rad"]),
     ("truth.csv", lambda t: t.splitlines()[0] + "\n1000.0,1,2,3,4,5,6\n", ["truth.csv", "covers none of the run"]),
     ("truth.csv", lambda t: t.replace("vx_mps", "speed"), ["truth.csv", "missing column", "vx_mps"]),
 ]
 
 
-def _line(text: str, number: int, change) -> str:
-    lines = text.splitlines()
-    lines[number - 1] = ",".join(change(lines[number - 1].split(",")))
-    return "\n".join(lines) + "\n"
-
-
 def test_malformed_logs_are_one_line_and_exit_2(tmp_path):
     _, folder = _export(tmp_path, "paper", duration=10.0)
-    for i, (name, breaks, needles) in enumerate(BAD):
-        bad = tmp_path / f"bad{i}"
-        shutil.copytree(folder, bad)
-        (bad / name).write_text(breaks((folder / name).read_text()))
-        out = tmp_path / f"bad{i}.rrd"
-        r = wb("sea", "--scenario", "log", "--data", str(bad), "--out", str(out))
-        said = r.stderr.strip()
-        assert r.returncode == 2 and "\n" not in said and "Traceback" not in said, (name, said)
-        assert all(n in said for n in needles), (i, name, said)
-        assert not out.exists()
-    r = wb("sea", "--scenario", "log", "--out", str(tmp_path / "x.rrd"))
-    assert r.returncode == 2 and "--scenario log needs --data" in r.stderr
+    bad_logs_say_one_line("sea", folder, tmp_path, BAD)

@@ -4,11 +4,10 @@ gives the same estimates; without the truth it runs; malformed folders are one l
 
 import dataclasses
 import json
-import shutil
 
 import numpy as np
 import pytest
-from launcher import DATA, wb
+from launcher import DATA, bad_logs_say_one_line, edit_line, wb
 
 import workbench
 
@@ -60,37 +59,19 @@ BAD = [  # (file, how to break it, what the one line must say)
     ("manifest.json", lambda t: "not json", ["manifest.json", "not JSON"]),
     ("manifest.json", lambda t: t.replace('"fx_px"', '"f"'), ["fx_px"]),
     ("orientation.csv", lambda t: t.replace("psi_rad", "yaw"), ["orientation.csv", "missing column", "psi_rad"]),
-    ("orientation.csv", lambda t: _line(t, 2, lambda f: [f[0], "nan", *f[2:]]), ["orientation.csv", "line 2", "x_m"]),
-    ("orientation.csv", lambda t: _line(t, 3, lambda f: ["1", *f[1:]]), ["orientation.csv", "exposure 1"]),
-    ("orientation.csv", lambda t: _line(t, 3, lambda f: ["2.5", *f[1:]]), ["orientation.csv", "line 3", "exposure"]),
-    ("orientation.csv", lambda t: _line(t, 2, lambda f: [*f[:4], "9.0", *f[5:]]), ["orientation.csv", "line 2",
-                                                                                  "psi_rad", "beyond"]),
+    ("orientation.csv", lambda t: edit_line(t, 2, lambda f: [f[0], "nan", *f[2:]]),
+     ["orientation.csv", "line 2", "x_m"]),
+    ("orientation.csv", lambda t: edit_line(t, 3, lambda f: ["1", *f[1:]]), ["orientation.csv", "exposure 1"]),
+    ("orientation.csv", lambda t: edit_line(t, 3, lambda f: ["2.5", *f[1:]]),
+     ["orientation.csv", "line 3", "exposure"]),
+    ("orientation.csv", lambda t: edit_line(t, 2, lambda f: [*f[:4], "9.0", *f[5:]]),
+     ["orientation.csv", "line 2", "psi_rad", "beyond"]),
     ("image_2.tif", None, ["image_2.tif", "missing"]),
     ("image_1.tif", lambda t: "not an image", ["image_1.tif", "not an image"]),
     ("dem.tif", None, ["dem.tif", "missing"]),
 ]
 
 
-def _line(text: str, number: int, change) -> str:
-    lines = text.splitlines()
-    lines[number - 1] = ",".join(change(lines[number - 1].split(",")))
-    return "\n".join(lines) + "\n"
-
-
 def test_malformed_logs_are_one_line_and_exit_2(tmp_path):
     _, folder = _export(tmp_path, "synthetic", **FAST)
-    for i, (name, breaks, needles) in enumerate(BAD):
-        bad = tmp_path / f"bad{i}"
-        shutil.copytree(folder, bad)
-        if breaks is None:
-            (bad / name).unlink()
-        else:
-            (bad / name).write_text(breaks((folder / name).read_text() if name.endswith((".csv", ".json")) else ""))
-        out = tmp_path / f"bad{i}.rrd"
-        r = wb("terrain", "--scenario", "log", "--data", str(bad), "--out", str(out))
-        said = r.stderr.strip()
-        assert r.returncode == 2 and "\n" not in said and "Traceback" not in said, (name, said)
-        assert all(n in said for n in needles), (i, name, said)
-        assert not out.exists()
-    r = wb("terrain", "--scenario", "log", "--out", str(tmp_path / "x.rrd"))
-    assert r.returncode == 2 and "--scenario log needs --data" in r.stderr
+    bad_logs_say_one_line("terrain", folder, tmp_path, BAD)

@@ -133,3 +133,21 @@ def disagreement(x_f: np.ndarray, P_f: np.ndarray, x_s: np.ndarray, P_s: np.ndar
         if pd.any():
             out[pd] = np.einsum("ki,ki->k", d[pd], np.linalg.solve(C[pd], d[pd][..., None])[..., 0])
     return out
+
+
+def below(P_f: np.ndarray, P_s: np.ndarray, tolerance: float = 1e-6) -> np.ndarray:
+    """1 where a causal estimator's covariance ``P_f`` is below the smoother's ``P_s`` in some
+    direction (``P_f - P_s`` has an eigenvalue under ``-tolerance`` times the larger covariance's
+    largest), 0 where it is not, NaN where either is missing. The smoother uses all the data the
+    filter used and more, so with both consistent ``P_f >= P_s`` (the difference is the covariance of
+    the filter's estimate about the smoother's, Rauch, Tung, Striebel 1965): a filter below it
+    claims a certainty the data do not give, and its :func:`disagreement` has no weight there."""
+    P_f, P_s = np.asarray(P_f, float), np.asarray(P_s, float)
+    out = np.full(len(P_f), np.nan)
+    ok = np.isfinite(P_f).all(axis=(1, 2)) & np.isfinite(P_s).all(axis=(1, 2))
+    if ok.any():
+        C = P_f[ok] - P_s[ok]
+        C = 0.5 * (C + np.swapaxes(C, -1, -2))
+        scale = np.maximum(np.abs(P_f[ok]).max(axis=(1, 2)), np.abs(P_s[ok]).max(axis=(1, 2)))
+        out[ok] = (np.linalg.eigvalsh(C).min(axis=-1) < -tolerance * scale).astype(float)
+    return out

@@ -121,6 +121,16 @@ def disagreement(data: OmniData, est: SlamEstimate, ctx: MetricContext) -> Value
     return Values(consistency.disagreement(pose, cov, spose, scov, angles=(2,)), _t(data))
 
 
+def below_smoother(data: OmniData, est: SlamEstimate, ctx: MetricContext) -> Values | None:
+    """1 at each grid step where a causal estimator's pose covariance is below the smoother's in
+    some direction (:func:`~workbench.estimation.consistency.below`; truth-free)."""
+    ref = truthfree.reference(ctx)
+    if ref is None:
+        return None
+    scov = evaluate.on_grid(ctx.estimates[ref], data.grid)[1]
+    return Values(consistency.below(_pose(data, est, ctx)[1], scov), _t(data))
+
+
 def coverage(data: OmniData, est: SlamEstimate, ctx: MetricContext) -> Values:
     e = _errors(data, est, ctx)
     return Values(np.isfinite(np.hypot(e[:, 0], e[:, 1])).astype(float), _t(data))
@@ -256,6 +266,9 @@ METRICS: tuple[Metric, ...] = (
     Metric("disagreement", disagreement, "", "a causal estimator's pose against the run's smoother's, normalised "
            "by the difference of their covariances (3 dof; truth-free), mean", reduce="mean", dimension=3,
            truth_free=True, label="vs smoother"),
+    Metric("below_smoother", below_smoother, "", "share of the grid steps where a causal estimator's covariance is "
+           "below the smoother's in some direction (it claims a certainty the data do not give; truth-free)",
+           reduce="mean", at_most=truthfree.BELOW_MAX, truth_free=True, window=False),
     Metric("landmarks", landmarks, "", "landmarks in the final map, mean over runs", reduce="sum", across="mean",
            fmt=".1f"),
     Metric("init_seconds_mean", init_delay, "s", "mean delay from a landmark's first sighting to its initialisation",

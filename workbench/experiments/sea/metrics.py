@@ -89,6 +89,15 @@ def disagreement(data: SeaData, est: Estimate, ctx: MetricContext) -> Values | N
     return Values(consistency.disagreement(est.position, est.covariance, s.position, s.covariance), data.t)
 
 
+def below_smoother(data: SeaData, est: Estimate, ctx: MetricContext) -> Values | None:
+    """1 at each step where a causal estimator's position covariance is below the smoother's in
+    some direction (:func:`~workbench.estimation.consistency.below`; truth-free)."""
+    ref = truthfree.reference(ctx)
+    if ref is None or est.covariance is None or ctx.estimates[ref].covariance is None:
+        return None
+    return Values(consistency.below(est.covariance, ctx.estimates[ref].covariance), data.t)
+
+
 def coverage(data: SeaData, est: Estimate) -> Values:
     return Values(np.isfinite(est.position[:, 0]).astype(float), data.t)
 
@@ -133,6 +142,9 @@ METRICS: tuple[Metric, ...] = (
     Metric("disagreement", disagreement, "", "a causal estimator's position against the run's smoother's, "
            "normalised by the difference of their covariances (2 dof; truth-free), mean", reduce="mean", dimension=2,
            truth_free=True, label="vs smoother"),
+    Metric("below_smoother", below_smoother, "", "share of the steps where a causal estimator's covariance is "
+           "below the smoother's in some direction (it claims a certainty the data do not give; truth-free)",
+           reduce="mean", at_most=truthfree.BELOW_MAX, truth_free=True, window=False),
     Metric("coverage", coverage, "", "share of the steps with an estimate", reduce="mean"),
     *(Metric(f"{q}_bound", _bound(q), UNITS[q], f"{q}'s Cramér-Rao bound (root of its mean variance)")
       for q in ("x", "y", "position", "range", "alpha", "beta")),
