@@ -127,8 +127,18 @@ def test_recordings_made_before_the_keys_were_renamed_replay(experiment):
     nested = {"sea": ("rmse", "x"), "omni": ("rmse", "position"), "terrain": ("paper", "mean_r")}[experiment]
     assert nested[1] in old[nested[0]] and "position_rmse_whole_run" not in old   # written before the rename
     r = wb("replay", str(path))
-    assert r.returncode == 0, r.stdout + r.stderr
-    compared = int(r.stdout.split("all ")[1].split(" numbers")[0])
-    assert "reproduces" in r.stdout and compared > 100, r.stdout
+    if experiment == "sea":
+        # one change since, and only it: the smoothers' covariances, which their angles' linear MMSE
+        # correction reads (estimate.from_positions), come in every run, not run 0's alone (so the
+        # truth-free disagreement is a test over every run); runs 1 and 2's gtsam and isam2 angles moved
+        # by under 0.04', every other number is the same
+        assert r.returncode != 0 and "28 of 353 numbers differ, in estimators.gtsam (14), estimators.isam2 (14)" \
+            in r.stdout + r.stderr, r.stdout + r.stderr
+        moved = [line for line in (r.stdout + r.stderr).splitlines() if " -> " in line]
+        assert moved and all((".alpha:" in m or ".beta:" in m) and ("gtsam." in m or "isam2." in m) for m in moved)
+    else:
+        assert r.returncode == 0, r.stdout + r.stderr
+        compared = int(r.stdout.split("all ")[1].split(" numbers")[0])
+        assert "reproduces" in r.stdout and compared > 100, r.stdout
     info = wb("info", str(path))
     assert info.returncode == 0 and "| estimator |" in info.stdout, info.stderr
