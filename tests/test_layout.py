@@ -43,6 +43,26 @@ def test_a_diverging_series_does_not_set_the_axis():
     assert layout.scale({"a": t, "b": 2 * t}) == (None, {})
 
 
+def test_a_spike_does_not_squeeze_a_band():
+    """A NEES-like curve in its band with one update's spike to 500: the axis is fitted to the
+    curves' 99th percentiles (at least 1.5 times the band's top), the spike named in the title."""
+    t = np.linspace(0, 100, 501)
+    rng = np.random.default_rng(0)
+    ekf, isam2 = rng.chisquare(3, t.size), rng.chisquare(3, t.size)
+    isam2[250] = 500.0
+    curves = layout.Curves(t, {"ekf": ekf, "isam2": isam2, "band_lo": np.full_like(t, 0.22),
+                               "band_hi": np.full_like(t, 9.35)}, fixed=("band_lo", "band_hi"))
+    view = layout.plot("/nees", "pose NEES", SPAN, curves)
+    top = 1.1 * max(np.quantile(ekf, 0.99), np.quantile(isam2, 0.99))
+    assert str(view.name) == "pose NEES; isam2 spikes to 500"
+    axis = view.properties["ScalarAxis"].range.as_arrow_array().to_pylist()[0]
+    assert axis == pytest.approx([0.0, max(top, 1.5 * 9.35)])
+    # no spike: the axis as before (the viewer's own), nothing named
+    plain = layout.Curves(t, {"ekf": ekf, "band_lo": curves.series["band_lo"], "band_hi": curves.series["band_hi"]},
+                          fixed=("band_lo", "band_hi"))
+    assert str(layout.plot("/nees", "pose NEES", SPAN, plain).name) == "pose NEES"
+
+
 def test_colours_per_estimator_are_the_same_everywhere():
     """A name in two experiments has one colour; within an experiment (its built-ins and its
     installed plugins) no two estimators share one, and none is the truth's or the observer's."""

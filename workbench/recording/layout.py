@@ -19,6 +19,9 @@ MAP_BACKGROUND = (24, 28, 34)
 """The maps' background: the estimators' colours and the truth's near-white read on it."""
 OFF_SCALE = 10.0
 """An estimator whose largest value is this many times the others' median largest is off the scale."""
+SPIKES = 0.99
+"""A plot with a consistency band fits its axis to each curve's 99th percentile: a spike at a few
+steps (an update that jumps) does not squeeze the band into a sliver; the spikes are named."""
 LEGEND_BOX = (0.3, 0.45)
 """The part of a plot's width and height a legend of a handful of rows covers (measured in the web
 viewer: 6-9 rows in plots 200-260 px high, the legend 120-190 px high and 90-110 px wide)."""
@@ -58,15 +61,38 @@ def plot(origin: str, name: str, span: tuple[float, float], curves: Curves | Non
         values = [v for n, v in curves.series.items() if n not in off]
         shown = np.concatenate([np.ravel(v) for v in values]) if values else np.zeros(0)
         shown = shown[np.isfinite(shown)]
+        spikes = ""
+        if curves.fixed:
+            top, spikes = band_top(curves, off, top)
         if top is not None:
             bottom = min(0.0, float(shown.min())) if shown.size else 0.0
             axis_y = rrb.ScalarAxis(range=(bottom, top), zoom_lock=False)
-        title = name + off_scale_note(off, curves.unit)
+        title = name + off_scale_note(off, curves.unit) + spikes
         corner = legend_corner(curves.t, list(curves.series.values()), span, top)
     view_range = rrb.TimeRange(start=rrb.TimeRangeBoundary.absolute(seconds=float(span[0])),
                                end=rrb.TimeRangeBoundary.absolute(seconds=float(span[1])))
     return rrb.TimeSeriesView(origin=origin, name=title, axis_x=rrb.TimeAxis(view_range=view_range),
                               axis_y=axis_y, plot_legend=rrb.PlotLegend(corner=corner, visible=legend))
+
+
+def band_top(curves: Curves, off: dict[str, float], top: float | None) -> tuple[float | None, str]:
+    """A banded plot's axis top where a curve spikes (reaches over twice what its ``SPIKES``
+    quantiles say): 1.1 times the largest such quantile of the curves shown (not ``off`` the
+    scale), at least 1.5 times the band's top, no higher than ``top``; and a note naming the curves
+    that spike (their largest value). Without a spike, ``top`` as it was and no note."""
+    band = [float(np.nanmax(curves.series[n])) for n in curves.fixed if np.isfinite(curves.series[n]).any()]
+    shown = {n: np.asarray(v, float)[np.isfinite(v)] for n, v in curves.series.items()
+             if n not in off and n not in curves.fixed}
+    shown = {n: v for n, v in shown.items() if v.size}
+    if not band or not shown:
+        return top, ""
+    robust = max(1.1 * max(float(np.quantile(v, SPIKES)) for v in shown.values()), 1.5 * max(band))
+    if top is not None and top <= robust:
+        return top, ""
+    above = {n: float(v.max()) for n, v in shown.items() if v.max() > 2.0 * robust}
+    if not above:
+        return top, ""
+    return robust, "".join(f"; {curves.label(n)} spikes to {p:.3g}" for n, p in above.items())
 
 
 def legend_corner(t: np.ndarray, values: list[np.ndarray], span: tuple[float, float],
