@@ -113,6 +113,11 @@ class OmniConfig(Config):
         apply_scenario(self, SCENARIOS)
 
     @property
+    def starts(self) -> list[str]:
+        """The batch's starts ``--batch-starts`` names, in order (the first wins a tie)."""
+        return [n.strip() for n in self.batch_starts.split(",") if n.strip()]
+
+    @property
     def sigma_gamma(self) -> float:
         return math.radians(self.sigma_gamma_deg)
 
@@ -177,7 +182,7 @@ class OmniConfig(Config):
                 f"--lm-every must be >= 0 s (got {self.lm_every})")
         require(math.isfinite(self.huber) and self.huber >= 0.0, f"--huber must be >= 0 sigmas (got {self.huber})")
         require(self.ekf_init in ("ut", "linear"), f"--ekf-init must be ut or linear (got {self.ekf_init!r})")
-        starts = [n.strip() for n in self.batch_starts.split(",") if n.strip()]
+        starts = self.starts
         require(starts and set(starts) <= set(BATCH_STARTS) and len(set(starts)) == len(starts),
                 f"--batch-starts must name one or more of {', '.join(BATCH_STARTS)}, each once "
                 f"(got {self.batch_starts!r})")

@@ -54,13 +54,8 @@ def batch(data: OmniData, cfg: OmniConfig, ctx: RunContext) -> SlamEstimate:
     kf = keyframes(data, cfg, ctx)
     others = {"isam2": isam2, "ekf": ekf_clone}
     starts = [graph.start_from(name, others[name](data, cfg, ctx), data, kf) if name in others
-              else graph.own_start(data, cfg, kf, name) for name in batch_starts(cfg)]
+              else graph.own_start(data, cfg, kf, name) for name in cfg.starts]
     return graph.batch(data, cfg, kf, starts)
-
-
-def batch_starts(cfg: OmniConfig) -> list[str]:
-    """The starts ``--batch-starts`` names, in order (the first wins a tie)."""
-    return [n.strip() for n in cfg.batch_starts.split(",") if n.strip()]
 
 
 TABLE: dict[str, Estimator] = table(

@@ -716,24 +716,19 @@ def robust_cost(data: OmniData, cfg: OmniConfig, kf: Keyframes, result: gtsam.Va
     lower its cost by leaving bearings out, each one out costs as much as the worst one kept, so
     a wrong basin that gates thousands of bearings out costs more than the right one."""
     gate = chi2_quantile(cfg.nis_gate if cfg.nis_gate > 0.0 else 0.99, 1)
-    odometry = gtsam.NonlinearFactorGraph()
-    odometry.add(_prior(data))
-    for e, (odo, cov) in enumerate(kf.between, start=1):
-        odometry.add(gtsam.BetweenFactorPose2(X(e - 1), X(e), odo, _noise(cov)))
-    cost = odometry.error(result)
-    sigma2 = data.sigma_bearing ** 2
-    for e, (lms, bearings) in enumerate(kf.bearings):
-        if len(lms) == 0:
-            continue
-        pose = _pose(result.atPose2(X(e)))
-        for lm, b in zip(lms.tolist(), bearings.tolist(), strict=True):
-            if not inserted[lm]:
-                cost += 0.5 * gate
-                continue
-            d = result.atPoint2(L(lm)) - pose[:2]
-            r = float(wrap(b - (math.atan2(d[1], d[0]) - pose[2])))
-            cost += 0.5 * min(r * r / sigma2, gate)
-    return float(cost)
+    cost = _odometry_graph(data, kf).error(result)
+    e = np.concatenate([np.full(len(lms), k) for k, (lms, _) in enumerate(kf.bearings)]).astype(int)
+    lm = np.concatenate([lms for lms, _ in kf.bearings]).astype(int)
+    b = np.concatenate([bs for _, bs in kf.bearings])
+    mapped = inserted[lm]
+    r2 = np.full(len(lm), gate)  # a bearing of a landmark not in the map counts at the gate
+    if mapped.any():
+        pose = np.array([_pose(result.atPose2(X(k))) for k in range(len(kf.steps))])[e[mapped]]
+        points = {k: result.atPoint2(L(k)) for k in np.unique(lm[mapped]).tolist()}
+        d = np.array([points[k] for k in lm[mapped].tolist()]) - pose[:, :2]
+        r = wrap(b[mapped] - (np.arctan2(d[:, 1], d[:, 0]) - pose[:, 2]))
+        r2[mapped] = np.minimum(r * r / data.sigma_bearing ** 2, gate)
+    return float(cost + 0.5 * r2.sum())
 
 
 REGATE_ROUNDS = 3
@@ -745,14 +740,20 @@ def _batch_graph(data: OmniData, kf: Keyframes, marks: _Landmarks, rejected: set
     """The batch's factors: the start's prior, the odometry between keyframes, and every bearing
     of a landmark in the graph (``marks.inserted``) but those ``(keyframe, landmark)`` in
     ``rejected`` (what :meth:`_Landmarks.observe` hands out over the run, held rays included)."""
-    graph = gtsam.NonlinearFactorGraph()
-    graph.add(_prior(data))
-    for e, (odo, cov) in enumerate(kf.between, start=1):
-        graph.add(gtsam.BetweenFactorPose2(X(e - 1), X(e), odo, _noise(cov)))
+    graph = _odometry_graph(data, kf)
     for e, (lms, bearings) in enumerate(kf.bearings):
         for lm, b in zip(lms.tolist(), bearings.tolist(), strict=True):
             if marks.inserted[lm] and (e, lm) not in rejected:
                 graph.add(marks.factor(e, lm, b))
+    return graph
+
+
+def _odometry_graph(data: OmniData, kf: Keyframes) -> gtsam.NonlinearFactorGraph:
+    """The start's prior and the odometry between keyframes: every graph's first factors."""
+    graph = gtsam.NonlinearFactorGraph()
+    graph.add(_prior(data))
+    for e, (odo, cov) in enumerate(kf.between, start=1):
+        graph.add(gtsam.BetweenFactorPose2(X(e - 1), X(e), odo, _noise(cov)))
     return graph
 
 

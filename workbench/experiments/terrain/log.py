@@ -72,7 +72,7 @@ def write(data: TerrainData, folder: Path, force: bool = False) -> list[Path]:
         buf = io.BytesIO()
         tifffile.imwrite(buf, np.ascontiguousarray(sc.images[i], np.float64), photometric="minisblack")
         rasters[f"image_{i + 1}.tif"] = buf.getvalue()
-    for name in rasters:
+    for name in (*rasters, *files, "manifest.json"):  # every path checked before any is written
         check_plain_output(folder / name, force, "log file")
     paths = []
     for name, blob in rasters.items():
