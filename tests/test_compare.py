@@ -58,10 +58,11 @@ def test_the_layout_has_each_run_and_the_overlays(sea):
     side = tree.children[0]
     assert [n.name for n in side.children] == ["lam=1", "lam=0.99"]
     # each run's own layout, re-rooted under its prefix
-    assert {v.origin for v in side.children[1].views()} >= {"/lam_0.99/map", "/lam_0.99/errors/x"}
+    assert {v.origin for v in side.children[1].views()} >= {"/lam_0.99/map", "/lam_0.99/errors/position"}
     overlaid = {v.name: v for v in tree.children[1].views()}
-    queries = overlaid["error x (m)"].properties["ViewContents"]["query"]
-    assert any("/lam_1/errors/x" in q for q in queries) and any("/lam_0.99/errors/x" in q for q in queries)
+    queries = overlaid["position error (m): no covariance"].properties["ViewContents"]["query"]  # a group's
+    assert set(queries) == {f"/{run}/errors/position/{n}" for run in ("lam_1", "lam_0.99")
+                            for n in ("geometric", "rls", "window-rls")}
     text = readback.static_values(c, "/comparison", "TextDocument:text")[0]
     assert "**lam=0.99 - lam=1**" in text and "| rls.rmse.x |" in text and "| ekf." not in text
     r = wb("info", str(c))

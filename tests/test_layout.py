@@ -12,6 +12,7 @@ from launcher import wb
 
 from workbench import experiments
 from workbench.experiments import estimator as plugins
+from workbench.experiments import plots as plots_mod
 from workbench.recording import draw, layout
 from workbench.tools import browser
 
@@ -123,11 +124,25 @@ def test_the_recorded_layout_reads_at_first_sight(recorded, name):
             assert abs(pos[0] - target[0]) < 1e-2 and abs(pos[1] - target[1]) < 1e-2 and pos[2] > target[2]
             assert eye["eye_up"][0] == [0.0, 1.0, 0.0]
             assert props["Background"]["color"][0] == draw_rgba(layout.MAP_BACKGROUND)
-    # a legend in the first plot of each tab only; the corner is one the data leaves free
+    # a legend in the first plot of each tab; later ones only in small multiples (a group's own
+    # series, named in no legend above it) and never more rows than a short plot shows whole
+    grouped = 0
     for tab in tabs.children[:-1]:
         plots = [v for v in tab.walk() if v.kind == "TimeSeries"]
         shown = [v.properties["PlotLegend"].get("visible", [True])[0] for v in plots]
-        assert shown[0] and not any(shown[1:-1])
+        assert shown[0]
+        named: set[str] = set()
+        for i, (v, legend) in enumerate(zip(plots, shown, strict=True)):
+            query = [q for q in v.properties.get("ViewContents", {}).get("query") or [] if q != "$origin/**"]
+            mine = {q.rsplit("/", 1)[1] for q in query or []} - {"band_lo", "band_hi"}
+            if query:
+                grouped += 1
+                assert 0 < len(mine) <= plots_mod.GROUP_OVER, (v.name, mine)
+            if legend and 0 < i < len(plots) - 1:
+                assert query and not mine <= named, f"{v.name}: a legend that repeats one above it"
+            named |= mine if legend else set()
+    # the defaults (sea six estimators, omni five) are over the few one plot holds: errors in groups
+    assert grouped >= 3, grouped
 
 
 def draw_rgba(rgb) -> int:

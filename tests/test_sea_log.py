@@ -50,7 +50,7 @@ def test_without_truth_and_with_a_sparse_one(tmp_path):
     assert ekf["position_rmse"] is None and ekf["anees"] is None and ekf["consistent_without_truth"] is True
     # the recording's reference is the smoother: each estimate's departure from it, named so
     names = [v.name for v in blueprints.layout(out).views()]
-    assert "departure from gtsam, x (m)" in names and not any(n.startswith("error x") for n in names)
+    assert "departure from gtsam (m): filters" in names and not any(n.startswith("position error") for n in names)
     t, x = readback.series(out, "/errors/x/ekf")
     assert len(t) == len(res.data.t)
     assert np.allclose(x, res.estimates["gtsam"].position[:, 0] - res.estimates["ekf"].position[:, 0], atol=1e-9)

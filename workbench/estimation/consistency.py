@@ -135,6 +135,21 @@ def disagreement(x_f: np.ndarray, P_f: np.ndarray, x_s: np.ndarray, P_s: np.ndar
     return out
 
 
+def residual(r: np.ndarray, R: np.ndarray, HPH: np.ndarray | None = None) -> np.ndarray:
+    """Each measurement's normalised squared residual at an estimate that used it, ``r' (R - H P
+    H')^-1 r`` per row (``r (K, m)``, ``R, HPH (K, m, m)``; NaN where a term is missing or ``R -
+    H P H'`` is not positive definite). With the estimate's own covariance ``P`` (a filter's after
+    the update, a smoother's) the residual ``z - h(x^)`` of a consistent estimator has covariance
+    ``R - H P H'`` (the estimate moved towards the measurement: the post-fit residual of linear least
+    squares, Bar-Shalom, Li, Kirubarajan, sec. 3.4, which a smoother is; a filter's update, with
+    ``P = (I - K H) P^-``, gives ``R - H P H' = R S^-1 R`` by the same algebra), so the figure is
+    chi-square with ``m`` degrees of freedom.
+    Without ``HPH`` it is ``r' R^-1 r``: for an estimate that says nothing of its uncertainty, a
+    figure to compare, not a test (its expectation lies between ``m - tr(R^-1 H P H')`` and ``m``)."""
+    r = np.asarray(r, float)
+    return disagreement(r, R, np.zeros_like(r), np.zeros_like(R) if HPH is None else HPH)
+
+
 def below(P_f: np.ndarray, P_s: np.ndarray, tolerance: float = 1e-6) -> np.ndarray:
     """1 where a causal estimator's covariance ``P_f`` is below the smoother's ``P_s`` in some
     direction (``P_f - P_s`` has an eigenvalue under ``-tolerance`` times the larger covariance's

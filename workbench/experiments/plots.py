@@ -138,6 +138,34 @@ def narrow_tables(markdown: str, columns: int = 5) -> str:
     return "\n".join(out)
 
 
+GROUP_OVER = 4
+"""More estimators than this in one plot and their curves hide each other (seven noisy error lines
+in the browser could not be told apart, and the legend was cut after six): the plot becomes small
+multiples, one per group (:func:`groups`)."""
+GROUPS = ("filters", "no covariance", "smoothers", "plugins")
+
+
+def groups(estimators: Mapping[str, Any], names: Iterable[str]) -> dict[str, list[str]] | None:
+    """The estimators ``names`` (those of ``estimators`` among them, in order) by kind, for
+    :func:`workbench.recording.layout.grouped`: ``filters`` (causal: each step's estimate from the
+    data up to it, with its covariance), ``no covariance`` (causal point estimates, the papers'
+    geometric and least-squares ones: noisier, they would hide the filters), ``smoothers`` (they
+    use later data too: a fixed lag or the whole run) and ``plugins`` (a researcher's own, whatever
+    its kind, apart so it is never lost among the built-ins; the workbench's own entry points are
+    built-ins here). None where there are at most :data:`GROUP_OVER` (one plot reads)."""
+    names = [n for n in names if n in estimators]
+    if len(names) <= GROUP_OVER:
+        return None
+    out: dict[str, list[str]] = {g: [] for g in GROUPS}
+    for n in names:
+        e = estimators[n]
+        ours = e.builtin or str(getattr(e.run, "__module__", "")).startswith("workbench.")
+        kind = ("plugins" if not ours else "smoothers" if e.delay > 0 else
+                "filters" if e.covariances else "no covariance")
+        out[kind].append(n)
+    return {g: v for g, v in out.items() if v}
+
+
 def flagged(title: str, stats: Mapping | None, truth: bool) -> str:
     """A view's title with the estimators that fail their consistency tests (``truth``: with the
     truth, the NEES; else without it, :func:`.markdown.verdicts`) named after it."""

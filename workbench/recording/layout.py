@@ -19,6 +19,10 @@ MAP_BACKGROUND = (24, 28, 34)
 """The maps' background: the estimators' colours and the truth's near-white read on it."""
 OFF_SCALE = 10.0
 """An estimator whose largest value is this many times the others' median largest is off the scale."""
+OFF_SCALE_GROUP = 4.0
+"""In a group's plot (:func:`grouped`), a curve whose largest value is this many times the group's
+least largest is off the scale: the axis fits the group's best (a filters' plot is about the EKF,
+not the dead reckoning that drifts 20 times as far; the browser showed the good ones flat)."""
 SPIKES = 0.99
 """A plot with a consistency band fits its axis to each curve's 99th percentile: a spike at a few
 steps (an update that jumps) does not squeeze the band into a sliver; the spikes are named."""
@@ -49,15 +53,18 @@ class Curves:
 
 
 def plot(origin: str, name: str, span: tuple[float, float], curves: Curves | None = None,
-         legend: bool = True, timeline: str = "time") -> rrb.TimeSeriesView:
+         legend: bool = True, timeline: str = "time", contents: list[str] | None = None,
+         best: bool = False) -> rrb.TimeSeriesView:
     """A time plot opening on the whole run ``span`` (s). With ``curves``: a value axis that no
     diverging series sets (:func:`scale`; the ones left above it named in the view's title), and
     the legend in the corner where it hides the fewest points (:func:`legend_corner`); without,
     the viewer's own axis and the legend at the top right. ``legend=False`` hides it (a plot
-    below another that already names the same colours)."""
+    below another that already names the same colours); ``contents``: the entities it shows
+    (default: everything under ``origin``); ``best``: the axis fits the best curves
+    (:data:`OFF_SCALE_GROUP`), those above it named briefly (a small multiple's narrow title)."""
     axis_y, corner, title = None, rrb.Corner2D.RightTop, name
     if curves is not None:
-        top, off = scale({n: v for n, v in curves.series.items() if n not in curves.fixed})
+        top, off = scale({n: v for n, v in curves.series.items() if n not in curves.fixed}, best)
         values = [v for n, v in curves.series.items() if n not in off]
         shown = np.concatenate([np.ravel(v) for v in values]) if values else np.zeros(0)
         shown = shown[np.isfinite(shown)]
@@ -67,12 +74,36 @@ def plot(origin: str, name: str, span: tuple[float, float], curves: Curves | Non
         if top is not None:
             bottom = min(0.0, float(shown.min())) if shown.size else 0.0
             axis_y = rrb.ScalarAxis(range=(bottom, top), zoom_lock=False)
-        title = name + off_scale_note(off, curves.unit) + spikes
+        title = name + (f"; above: {', '.join(off)}" if best and off else off_scale_note(off, curves.unit)) + spikes
         corner = legend_corner(curves.t, list(curves.series.values()), span, top)
     view_range = rrb.TimeRange(start=rrb.TimeRangeBoundary.absolute(seconds=float(span[0])),
                                end=rrb.TimeRangeBoundary.absolute(seconds=float(span[1])))
-    return rrb.TimeSeriesView(origin=origin, name=title, axis_x=rrb.TimeAxis(view_range=view_range),
+    kw = {"contents": contents} if contents is not None else {}
+    return rrb.TimeSeriesView(origin=origin, name=title, axis_x=rrb.TimeAxis(view_range=view_range), **kw,
                               axis_y=axis_y, plot_legend=rrb.PlotLegend(corner=corner, visible=legend))
+
+
+def grouped(origin: str, name: str, span: tuple[float, float], curves: Curves | None,
+            groups: dict[str, list[str]], legend: bool = True) -> list[rrb.TimeSeriesView]:
+    """Small multiples of one plot: a view per group of series (``groups``: the group's title ->
+    its keys), each showing only its own curves and the ``fixed`` ones (a band), titled
+    ``"<name>: <group>"``, with its own value axis (:func:`plot`: a group of filters is not
+    flattened by the noisier point estimates' axis; the tick labels compare the groups) and its own
+    legend (a handful of rows: never cut; ``legend=False``: none, beside views that have it). Keys
+    of no group are not shown; an empty group gets no view."""
+    out = []
+    for g, keys in groups.items():
+        keys = [k for k in keys if curves is None or k in curves.series]
+        if not keys:
+            continue
+        mine = None
+        if curves is not None:
+            shown = [*keys, *[k for k in curves.fixed if k in curves.series]]
+            mine = Curves(curves.t, {k: curves.series[k] for k in shown}, curves.unit, curves.fixed,
+                          curves.labels, curves.points)
+        out.append(plot(origin, f"{name}: {g}", span, mine, legend=legend, best=True,
+                        contents=[f"$origin/{k}" for k in (mine.series if mine is not None else keys)]))
+    return out
 
 
 def band_top(curves: Curves, off: dict[str, float], top: float | None) -> tuple[float | None, str]:
@@ -162,15 +193,20 @@ def on_top(xy: np.ndarray) -> float:
     return 0.02 * _frame(xy)[1]
 
 
-def scale(series: dict[str, np.ndarray]) -> tuple[float | None, dict[str, float]]:
+def scale(series: dict[str, np.ndarray], best: bool = False) -> tuple[float | None, dict[str, float]]:
     """A value axis top for curves ``name -> values`` that no diverging one sets: 1.1 times the
-    largest value among those whose largest is within ``OFF_SCALE`` times the median largest;
-    and the ones left above it, with their largest. ``(None, {})`` when none diverges."""
+    largest value among those whose largest is within ``OFF_SCALE`` times the median largest
+    (``best``: within ``OFF_SCALE_GROUP`` times the least largest); and the ones left above it,
+    with their largest. ``(None, {})`` when none diverges."""
     peaks = {n: float(np.nanmax(np.abs(v))) for n, v in series.items() if np.isfinite(v).any()}
     if len(peaks) < 2:
         return None, {}
-    median = float(np.median(list(peaks.values())))
-    off = {n: p for n, p in peaks.items() if p > OFF_SCALE * max(median, 1e-12)}
+    if best:
+        least = min(peaks.values())
+        off = {n: p for n, p in peaks.items() if p > OFF_SCALE_GROUP * max(least, 1e-12)}
+    else:
+        median = float(np.median(list(peaks.values())))
+        off = {n: p for n, p in peaks.items() if p > OFF_SCALE * max(median, 1e-12)}
     if not off:
         return None, {}
     return 1.1 * max(p for n, p in peaks.items() if n not in off), off

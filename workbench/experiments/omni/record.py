@@ -102,7 +102,8 @@ def _switch_curves(d) -> dict[str, views.Curves]:
 
 def blueprint(names: list[str], scene: np.ndarray, curves: dict[str, views.Curves], with_images: bool = False,
               span: tuple[float, float] = (0.0, 500.0), extra: rrb.Vertical | None = None,
-              reference: str | None = None, stats: dict | None = None) -> rrb.Blueprint:
+              reference: str | None = None, stats: dict | None = None,
+              groups: dict[str, list[str]] | None = None) -> rrb.Blueprint:
     """Maps in a grid on the left, each top-down over ``scene`` (points, m), one per estimator
     (and the round camera image, when there is one); errors, sigmas, NEES and the Monte Carlo
     curves on the right in named tabs, every plot on the whole run ``span`` with its axis and
@@ -110,7 +111,9 @@ def blueprint(names: list[str], scene: np.ndarray, curves: dict[str, views.Curve
     the "metrics" tab. The legend is in the first plot of each tab: the colours are the same below it.
     ``reference``: a log without truth, whose run-0 plots are each estimate's departure from this
     smoother and each causal one's disagreement with it; ``stats``: the metrics, whose failed
-    consistency verdicts the NEES and disagreement views name."""
+    consistency verdicts the NEES and disagreement views name; ``groups`` (many estimators,
+    :func:`.plots.groups`): run 0's errors and sigmas as small multiples, a plot per group on one
+    axis, and the NEES in a tab of its own."""
 
     def plot(origin: str, name: str, legend: bool = True) -> rrb.TimeSeriesView:
         return views.plot(origin, name, span, curves.get(origin), legend=legend)
@@ -120,27 +123,38 @@ def blueprint(names: list[str], scene: np.ndarray, curves: dict[str, views.Curve
     if with_images:
         panes.insert(0, rrb.Spatial2DView(origin="/camera", name="round image, detected lines"))
     maps = rrb.Grid(*panes, name="maps")
+
+    def pair(origins: tuple[str, str], titles: tuple[str, str], tab: str, below: list,
+             apart: tuple[str, list] | None = None) -> list[rrb.Vertical]:
+        """Position and heading (a plot each, or with ``groups`` small multiples of each, side by side) and the
+        plots ``below`` them in the tab ``tab``; ``apart`` (a tab's name and its plots): with
+        ``groups``, in a tab of their own, else below the others."""
+        if groups:
+            columns = [rrb.Vertical(*views.grouped(o, t, span, curves.get(o), groups, legend=i == 0),
+                                    name=o.rsplit("/", 1)[1])
+                       for i, (o, t) in enumerate(zip(origins, titles, strict=True))]
+            mine = (rrb.Horizontal(*columns, name=tab) if not below else
+                    rrb.Vertical(rrb.Horizontal(*columns, name="by group"), *below, row_shares=[3, *[1] * len(below)],
+                                 name=tab))
+            return [mine, *([rrb.Vertical(*apart[1], name=apart[0])] if apart else [])]
+        return [rrb.Vertical(plot(origins[0], titles[0]), plot(origins[1], titles[1], legend=False), *below,
+                             *(apart[1] if apart else []), name=tab)]
+
     if reference is None:
-        one_run = rrb.Vertical(
-            plot("/errors/position", "position error (m)"),
-            plot("/errors/heading", "heading error (deg)", legend=False),
-            plot("/nees", metric_plots.flagged("pose NEES (3 dof), grey: 95 % band", stats, True), legend=False),
-            name="run 0",
-        )
+        nees = views.plot("/nees", metric_plots.flagged("pose NEES (3 dof), grey: 95 % band", stats, True), span,
+                          curves.get("/nees"), legend=bool(groups))
+        one_run = pair(("/errors/position", "/errors/heading"), ("position error (m)", "heading error (deg)"),
+                       "errors (run 0)" if groups else "run 0", [], ("NEES (run 0)", [nees]))
     else:  # no truth: the smoother is the reference
-        one_run = rrb.Vertical(
-            plot("/errors/position", f"departure from {reference}, position (m)"),
-            plot("/errors/heading", f"departure from {reference}, heading (deg)", legend=False),
-            plot("/nees", metric_plots.flagged(f"disagreement with {reference} (3 dof), grey: 95 % band", stats,
-                                               False), legend=False),
-            name=f"departure from {reference} (run 0)",
-        )
-    sigmas = [plot("/sigma/position", "own sigma, position (m)"),
-              plot("/sigma/heading", "own sigma, heading (deg)", legend=False)]
-    if "/odometry/switch" in curves:
-        sigmas.append(plot("/odometry/switch", "odometry gaps: heading sigma of an unknown switch (deg)",
-                           legend=False))
-    sigmas = rrb.Vertical(*sigmas, name="own sigmas (run 0)")
+        nees = views.plot("/nees", metric_plots.flagged(f"disagreement with {reference} (3 dof), grey: 95 % band",
+                                                        stats, False), span, curves.get("/nees"), legend=bool(groups))
+        one_run = pair(("/errors/position", "/errors/heading"),
+                       (f"departure from {reference}, position (m)", f"departure from {reference}, heading (deg)"),
+                       f"departure from {reference} (run 0)", [], (f"disagreement with {reference} (run 0)", [nees]))
+    switch = ([plot("/odometry/switch", "odometry gaps: heading sigma of an unknown switch (deg)", legend=False)]
+              if "/odometry/switch" in curves else [])
+    sigmas = pair(("/sigma/position", "/sigma/heading"), ("own sigma, position (m)", "own sigma, heading (deg)"),
+                  "own sigmas (run 0)", switch)
     mc = rrb.Vertical(
         plot("/monte_carlo/position", "RMS position error over runs (m), grey: Cramér-Rao bounds"),
         plot("/monte_carlo/heading", "RMS heading error over runs (deg)", legend=False),
@@ -148,7 +162,7 @@ def blueprint(names: list[str], scene: np.ndarray, curves: dict[str, views.Curve
              legend=False),
         name="over runs",
     )
-    tabs = [one_run, sigmas, *([mc] if reference is None else [])]  # (no truth: nothing to draw over runs)
+    tabs = [*one_run, *sigmas, *([mc] if reference is None else [])]  # (no truth: nothing to draw over runs)
     tabs += [extra] if extra is not None else []
     return rrb.Blueprint(
         rrb.Horizontal(maps, rrb.Tabs(*tabs, rrb.TextDocumentView(origin="/summary", name="results"), name="plots"),
@@ -164,7 +178,8 @@ def layout(first: RunResult, runs: list[RunSummary], stats: dict | None = None) 
     span = (float(runs[0].t[0]), float(runs[0].t[-1]))
     curves = plots(first, runs)
     return blueprint(list(first.estimates), scene(first), curves, first.images is not None, span,
-                     metric_plots.tab(curves, first.metrics, span, len(runs)), runs[0].reference, stats)
+                     metric_plots.tab(curves, first.metrics, span, len(runs)), runs[0].reference, stats,
+                     metric_plots.groups(first.estimators, [n for n in first.estimates if n != runs[0].reference]))
 
 
 def scene(first: RunResult) -> np.ndarray:

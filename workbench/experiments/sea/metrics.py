@@ -16,6 +16,7 @@ from workbench.estimation.angles import to_arcmin, wrap
 from workbench.experiments import truthfree
 from workbench.experiments.metric import Metric, MetricContext, Values
 from workbench.experiments.sea import bounds as sea_bounds
+from workbench.experiments.sea import geometry
 from workbench.experiments.sea.config import SeaConfig
 from workbench.experiments.sea.estimate import Estimate
 from workbench.experiments.sea.scenario import SeaData
@@ -89,6 +90,27 @@ def disagreement(data: SeaData, est: Estimate, ctx: MetricContext) -> Values | N
     return Values(consistency.disagreement(est.position, est.covariance, s.position, s.covariance), data.t)
 
 
+def residual(data: SeaData, est: Estimate) -> Values | None:
+    """Each step's measured angles against those the estimate's position predicts from the
+    measured camera, ``r = (alpha~ - h_alpha, beta~ - h_beta)``, normalised by the measurement's
+    noise with the camera position's folded in (:func:`.geometry.effective_noise`, as the
+    estimators take it) less the estimate's own share, ``r' (R - J P J')^-1 r``
+    (:func:`~workbench.estimation.consistency.residual`): chi-square with 2 degrees of freedom for
+    a consistent estimator that gives its covariance, a test of any estimate, a filter or a
+    smoother, built-in or a researcher's, with no innovations of its own to show (truth-free).
+    Without a covariance, ``r' R^-1 r``: a figure to compare, no test (the geometric inverse fits
+    every measurement exactly: 0)."""
+    if est.position is None or not np.isfinite(est.position).any():
+        return None
+    alpha, beta = geometry.angles(est.position, data.observer_meas, data.course, data.height)
+    r = np.stack([wrap(data.alpha_meas - alpha), data.beta_meas - beta], axis=-1)
+    J = geometry.angle_jacobian(est.position, data.observer_meas, data.height)
+    R = geometry.effective_noise(est.position, data.observer_meas, data.height, data.sigma_alpha, data.sigma_beta,
+                                 data.sigma_observer, J)
+    HPH = None if est.covariance is None else J @ est.covariance @ np.swapaxes(J, -1, -2)
+    return Values(consistency.residual(r, R, HPH), data.t, dof=None if HPH is None else 2)
+
+
 def below_smoother(data: SeaData, est: Estimate, ctx: MetricContext) -> Values | None:
     """1 at each step where a causal estimator's position covariance is below the smoother's in
     some direction (:func:`~workbench.estimation.consistency.below`; truth-free)."""
@@ -142,6 +164,9 @@ METRICS: tuple[Metric, ...] = (
     Metric("disagreement", disagreement, "", "a causal estimator's position against the run's smoother's, "
            "normalised by the difference of their covariances (2 dof; truth-free), mean", reduce="mean", dimension=2,
            truth_free=True, label="vs smoother"),
+    Metric("angle_residual", residual, "", "each step's measured angles against the estimate's, normalised by their "
+           "noise less the estimate's own covariance (chi-square, 2 dof, where it gives one; truth-free), mean",
+           reduce="mean", dimension=0, truth_free=True, label="residual"),
     Metric("below_smoother", below_smoother, "", "share of the steps where a causal estimator's covariance is "
            "below the smoother's in some direction (it claims a certainty the data do not give; truth-free)",
            reduce="mean", at_most=truthfree.BELOW_MAX, truth_free=True, window=False),

@@ -56,6 +56,7 @@ def plots(first: RunResult, runs: list[RunSummary]) -> dict[str, views.Curves]:
     out = {"/series/alpha": views.Curves(t, series["alpha"], "arcmin"),
            "/series/beta": views.Curves(t, series["beta"], "arcmin"),
            "/series/range": views.Curves(t, series["range"], "m"),
+           "/errors/position": views.Curves(t, {n: np.hypot(v[:, 0], v[:, 1]) for n, v in e.items()}, "m"),
            "/errors/x": views.Curves(t, {n: v[:, 0] for n, v in e.items()}, "m"),
            "/errors/y": views.Curves(t, {n: v[:, 1] for n, v in e.items()}, "m"),
            "/errors/alpha": views.Curves(t, {n: to_arcmin(v[:, 2]) for n, v in e.items()}, "arcmin"),
@@ -79,12 +80,16 @@ def plots(first: RunResult, runs: list[RunSummary]) -> dict[str, views.Curves]:
 
 def blueprint(curves: dict[str, views.Curves], images: bool = False, span: tuple[float, float] = (0.0, 72.0),
               scene: np.ndarray | None = None, extra: rrb.Vertical | None = None,
-              reference: str | None = None, stats: dict | None = None) -> rrb.Blueprint:
+              reference: str | None = None, stats: dict | None = None,
+              groups: dict[str, list[str]] | None = None) -> rrb.Blueprint:
     """The top-down map on the left (framed on ``scene``, the observer's and the object's
     tracks); named tabs of angles and range, errors, the curves over runs and the results on
     the right; every plot opens on the whole run ``span``, its axis and legend fitted to its
     ``curves``; ``extra``: the "metrics" tab. The legend is in the first plot of each tab: the colours are the
-    same below it. ``stats``: the metrics, whose failed NEES verdicts the NEES view names."""
+    same below it. ``stats``: the metrics, whose failed NEES verdicts the NEES view names.
+    ``groups`` (many estimators, :func:`.plots.groups`): run 0's errors as small multiples, a plot
+    per group on one axis, position in one tab and the angles in another; else the four
+    components of Table 2 in one tab, every estimator in each plot."""
 
     def plot(origin: str, name: str, legend: bool = True) -> rrb.TimeSeriesView:
         return views.plot(origin, name, span, curves.get(origin), legend=legend)
@@ -93,22 +98,34 @@ def blueprint(curves: dict[str, views.Curves], images: bool = False, span: tuple
         plot("/series/alpha", "azimuth alpha (arcmin)"),
         plot("/series/beta", "elevation beta (arcmin)", legend=False),
         plot("/series/range", "range d (m)", legend=False),
-        name="angles and range",
+        name="angles and range", row_shares=[1.6, 1, 1],  # (the legend of every series needs the height)
     )
     what = "error" if reference is None else f"departure from {reference},"  # (no truth: the smoother)
-    errors = rrb.Vertical(
-        plot("/errors/x", f"{what} x (m)"),
-        plot("/errors/y", f"{what} y (m)", legend=False),
-        plot("/errors/alpha", f"{what} alpha (arcmin)", legend=False),
-        plot("/errors/beta", f"{what} beta (arcmin)", legend=False),
-        name="errors (run 0)" if reference is None else f"departure from {reference} (run 0)",
-    )
+    one = "run 0" if reference is None else f"from {reference}, run 0"
+    if groups:
+        def small(origin: str, title: str, legend: bool = True) -> list[rrb.TimeSeriesView]:
+            return views.grouped(origin, title, span, curves.get(origin), groups, legend)
+
+        head = "position error (m)" if reference is None else f"departure from {reference} (m)"
+        errors = [rrb.Vertical(*small("/errors/position", head),
+                               name=f"{'errors' if reference is None else 'departures'} ({one})"),
+                  rrb.Horizontal(rrb.Vertical(*small("/errors/alpha", "alpha (')"), name="alpha"),
+                                 rrb.Vertical(*small("/errors/beta", "beta (')", legend=False), name="beta"),
+                                 name=f"angle {'errors' if reference is None else 'departures'} ({one})")]
+    else:
+        errors = [rrb.Vertical(
+            plot("/errors/x", f"{what} x (m)"),
+            plot("/errors/y", f"{what} y (m)", legend=False),
+            plot("/errors/alpha", f"{what} alpha (arcmin)", legend=False),
+            plot("/errors/beta", f"{what} beta (arcmin)", legend=False),
+            name="errors (run 0)" if reference is None else f"departure from {reference} (run 0)",
+        )]
     mc = rrb.Vertical(
         plot("/monte_carlo/position_rmse", "position RMSE over runs (m), grey: Cramér-Rao bounds"),
         plot("/monte_carlo/nees", metric_plots.flagged("NEES over runs (4 states), grey: 95 % band", stats, True)),
         name="over runs",
     )
-    tabs = [series, errors, *([mc] if reference is None else []),  # (no truth: nothing to draw over runs)
+    tabs = [series, *errors, *([mc] if reference is None else []),  # (no truth: nothing to draw over runs)
             *([extra] if extra is not None else []), rrb.TextDocumentView(origin="/summary", name="results")]
     scene = np.zeros((1, 2)) if scene is None else scene
     left: rrb.Container | rrb.SpaceView = views.top_down("/map", "map (top-down, m)", scene, margin=1.3)
@@ -118,7 +135,7 @@ def blueprint(curves: dict[str, views.Curves], images: bool = False, span: tuple
             rrb.Spatial2DView(origin="/camera", name="camera (detections)"),
             row_shares=[1, 1], name="map and camera",
         )
-        tabs.insert(3, rrb.Vertical(
+        tabs.insert(len(tabs) - 1 - (extra is not None), rrb.Vertical(
             views.plot("/images/error", "image stage error (arcmin)", span),
             views.plot("/images/detected", "detected", span),
             rrb.TextLogView(origin="/camera/status", name="no detection"),
@@ -137,7 +154,8 @@ def layout(first: RunResult, runs: list[RunSummary], stats: dict | None = None) 
     curves = plots(first, runs)
     return blueprint(curves, images=first.images is not None, span=span, scene=scene(first),
                      extra=metric_plots.tab(curves, first.metrics, span, len(runs)), reference=runs[0].reference,
-                     stats=stats)
+                     stats=stats, groups=metric_plots.groups(first.estimators,
+                                                             [n for n in first.estimates if n != runs[0].reference]))
 
 
 def scene(first: RunResult) -> np.ndarray:
