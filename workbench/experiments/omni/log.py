@@ -6,7 +6,13 @@ world frame's x, y in metres, headings in radians counter-clockwise from x:
 
 ==================  ==========================================================================
 ``manifest.json``   ``motion`` (``unicycle``: controls ``v_mps``, ``w_radps``; ``bicycle``, the
-                    paper's (7): ``v_mps``, ``steering_rad``, with ``wheelbase_m``),
+                    paper's (7): ``v_mps``, ``steering_rad``, with ``wheelbase_m``;
+                    ``increments``: relative poses ``dx_m``, ``dy_m``, ``dphi_rad``, each row's
+                    change to the next row in the body frame at the row, g2o's ``EDGE_SE2``
+                    convention, with their sigmas ``sigma_dx_m``, ``sigma_dy_m``,
+                    ``sigma_dphi_rad`` per step, or each row's covariance in the columns
+                    ``var_dx_m2``, ``var_dy_m2``, ``var_dphi_rad2``, ``cov_dx_dy_m2``,
+                    ``cov_dx_dphi_mrad``, ``cov_dy_dphi_mrad``),
                     ``sigma_bearing_rad``, the odometry's noise ``sigma_v_mps`` and
                     ``sigma_w_radps`` (or ``sigma_steering_rad``), optionally ``sigma_q`` (three
                     numbers: x, y in m, phi in rad), ``noise_per_second`` (the sigmas are densities,
@@ -25,7 +31,8 @@ world frame's x, y in metres, headings in radians counter-clockwise from x:
                     value for the whole log: the estimators take one bearing sigma); each bearing
                     is taken at the odometry row nearest its time
 ``truth.csv``       optional: ``t_s``, ``x_m``, ``y_m``, optionally ``phi_rad``: the robot's true
-                    pose (a sparse fix, a GPS track, scores the steps it falls on)
+                    pose (a sparse fix, a GPS track, scores the steps it falls on), optionally
+                    ``sigma_m``: the fix's noise per axis (its NEES, ``fix_nees``, adds it)
 ``landmarks.csv``   optional: ``landmark_id``, ``x_m``, ``y_m``: the landmark survey (the map is
                     scored against it, and after its best rigid alignment)
 ==================  ==========================================================================
@@ -47,8 +54,15 @@ from workbench.experiments.omni.scenario import OmniData
 FORMAT = 1
 CONTROLS = {"unicycle": (("v_mps", "w_radps"), ("v_var_m2ps2", "w_var_rad2ps2"), ("sigma_v_mps", "sigma_w_radps")),
             "bicycle": (("v_mps", "steering_rad"), ("v_var_m2ps2", "steering_var_rad2"),
-                        ("sigma_v_mps", "sigma_steering_rad"))}
-"""Per motion model: the odometry's control columns, their extra variances' and the manifest's sigmas."""
+                        ("sigma_v_mps", "sigma_steering_rad")),
+            "increments": (("dx_m", "dy_m", "dphi_rad"),
+                           ("var_dx_m2", "var_dy_m2", "var_dphi_rad2", "cov_dx_dy_m2", "cov_dx_dphi_mrad",
+                            "cov_dy_dphi_mrad"),
+                           ("sigma_dx_m", "sigma_dy_m", "sigma_dphi_rad"))}
+"""Per motion model: the odometry's control columns, their extra variances' (for ``increments``
+the covariance's upper triangle) and the manifest's sigmas."""
+TRIANGLE = ((0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2))
+"""Where the ``increments`` covariance columns go in the 3 x 3 matrix."""
 START_SIGMA = (0.01, 0.01, math.radians(0.5))
 """The start pose's sigmas where the manifest gives a start but not its covariance."""
 
@@ -58,10 +72,14 @@ def write(data: OmniData, folder: Path, force: bool = False) -> list[Path]:
     bearings with their landmark ids, the truth and the survey where known."""
     m = data.motion
     controls, var_columns, sigmas = CONTROLS[m.model]
-    rows = np.vstack([data.controls, np.zeros((1, 2))])
+    width = len(controls)
+    rows = np.vstack([data.controls, np.zeros((1, width))])
     columns = ("t_s", *controls)
     if data.control_var is not None:
-        rows = np.column_stack([rows, np.vstack([data.control_var, np.zeros((1, 2))])])
+        var = data.control_var
+        if m.model == "increments":
+            var = np.stack([var[:, i, j] for i, j in TRIANGLE], axis=1)
+        rows = np.column_stack([rows, np.vstack([var, np.zeros((1, var.shape[1]))])])
         columns += var_columns
     files = {"odometry.csv": (columns, np.column_stack([data.t, rows])),
              "bearings.csv": (("t_s", "bearing_rad", "landmark_id"),
@@ -69,13 +87,18 @@ def write(data: OmniData, folder: Path, force: bool = False) -> list[Path]:
                                                data.landmark_ids[data.meas_lm]]))}
     truth = np.isfinite(data.truth[:, :2]).all(axis=1)
     if truth.any():
-        files["truth.csv"] = (("t_s", "x_m", "y_m", "phi_rad"), np.column_stack([data.t, data.truth])[truth])
+        columns, rows = ("t_s", "x_m", "y_m", "phi_rad"), np.column_stack([data.t, data.truth])
+        if not np.isfinite(data.truth[truth, 2]).all():  # positions alone (a fix without a heading)
+            columns, rows = columns[:3], rows[:, :3]
+        if data.truth_sigma is not None:
+            columns, rows = (*columns, "sigma_m"), np.column_stack([rows, data.truth_sigma])
+        files["truth.csv"] = (columns, rows[truth])
     surveyed = np.isfinite(data.landmarks).all(axis=1)
     if surveyed.any():
         files["landmarks.csv"] = (("landmark_id", "x_m", "y_m"),
                                   np.column_stack([data.landmark_ids, data.landmarks])[surveyed])
     meta = {"format": FORMAT, "experiment": "omni", "motion": m.model, "wheelbase_m": m.wheelbase,
-            "sigma_bearing_rad": data.sigma_bearing, sigmas[0]: m.sigma_u[0], sigmas[1]: m.sigma_u[1],
+            "sigma_bearing_rad": data.sigma_bearing, **dict(zip(sigmas, m.sigma_u, strict=True)),
             "sigma_q": list(m.sigma_q), "noise_per_second": m.per_second, "commands": "held",
             "start": data.start.tolist(), "start_cov": data.start_cov.tolist(), "fov_rad": data.fov,
             "max_range_m": data.max_range, "label": data.label}
@@ -95,20 +118,27 @@ def read(folder: Path, cfg: OmniConfig) -> OmniData:
     require(model in CONTROLS, f"{where}: motion must be one of {', '.join(CONTROLS)}, got {model!r}")
     controls, var_columns, sigma_keys = CONTROLS[model]
     wheelbase = logfiles.number(where, m, "wheelbase_m", positive=True) if model == "bicycle" else 0.0
-    sigma_u = tuple(logfiles.number(where, m, k) for k in sigma_keys)
     q = logfiles.numbers(where, m, "sigma_q", (3,))
-    per_second = m.get("noise_per_second", True)
+    per_second = m.get("noise_per_second", model != "increments")
     require(isinstance(per_second, bool), f"{where}: noise_per_second must be true or false, got {per_second!r}")
+    require(not (per_second and model == "increments"), f"{where}: noise_per_second must be false for increments "
+                                                        "(each row's noise is that step's, whatever its length)")
     commands = m.get("commands", "held")
     require(commands in ("held", "switch"), f"{where}: commands must be held or switch, got {commands!r}")
     repairs: dict[str, int] = {}
 
     odo = logfiles.table(folder, "odometry", ("t_s", *controls), repairs, optional=var_columns)
+    has_cov = model == "increments" and any(c in odo for c in var_columns)
+    sigma_u = tuple(logfiles.number(where, m, k, default=0.0 if has_cov else None) for k in sigma_keys)
     require(len(odo["t_s"]) >= 2, f"{folder / 'odometry.csv'}: fewer than two rows (a step needs two times)")
     t0 = odo["t_s"][0]
     t = odo["t_s"] - t0
     u = np.column_stack([odo[c] for c in controls])
-    if commands == "switch":
+    if model == "increments":
+        require(commands == "held", f"{where}: commands must be held for increments (each row is the pose change "
+                                    "to the next row)")
+        u, control_var = u[:-1], _covariances(folder / "odometry.csv", odo, var_columns) if has_cov else None
+    elif commands == "switch":
         from workbench.experiments.omni.real import between
 
         u, control_var = between(u, "switch")
@@ -144,9 +174,9 @@ def read(folder: Path, cfg: OmniConfig) -> OmniData:
     else:
         landmark_ids, landmarks, meas_lm = np.zeros(0, np.int64), np.zeros((0, 2)), np.zeros(len(step), int)
 
-    truth = np.full((len(t), 3), np.nan)
+    truth, truth_sigma = np.full((len(t), 3), np.nan), None
     if logfiles.has(folder, "truth"):
-        tr = logfiles.table(folder, "truth", ("t_s", "x_m", "y_m"), repairs, optional=("phi_rad",))
+        tr = logfiles.table(folder, "truth", ("t_s", "x_m", "y_m"), repairs, optional=("phi_rad", "sigma_m"))
         at = _nearest(folder / "truth.csv", tr, odo["t_s"], outside_ok=True)
         inside = at >= 0
         require(inside.any(), f"{folder / 'truth.csv'}: covers none of the run (its times are outside the "
@@ -154,6 +184,10 @@ def read(folder: Path, cfg: OmniConfig) -> OmniData:
         truth[at[inside], :2] = np.column_stack([tr["x_m"], tr["y_m"]])[inside]
         if "phi_rad" in tr:
             truth[at[inside], 2] = tr["phi_rad"][inside]
+        if "sigma_m" in tr:
+            require(np.all(tr["sigma_m"] >= 0), f"{folder / 'truth.csv'}: sigma_m must be non-negative")
+            truth_sigma = np.full(len(t), np.nan)
+            truth_sigma[at[inside]] = tr["sigma_m"][inside]
         csvfile.count(repairs, "truth_steps_missing", int(len(t) - np.unique(at[inside]).size))
     start = logfiles.numbers(where, m, "start", (3,))
     start_cov = logfiles.numbers(where, m, "start_cov", (3, 3))
@@ -172,10 +206,29 @@ def read(folder: Path, cfg: OmniConfig) -> OmniData:
         meas_bearing=b["bearing_rad"][order], sigma_bearing=sigma, landmark_ids=landmark_ids, landmarks=landmarks,
         fov=min(fov, 2.0 * math.pi), max_range=logfiles.number(where, m, "max_range_m", positive=True,
                                                                default=cfg.max_range),
-        label=str(m.get("label") or f"log {folder.name}"), walls=walls, repairs=repairs, control_var=control_var)
+        label=str(m.get("label") or f"log {folder.name}"), walls=walls, repairs=repairs, control_var=control_var,
+        truth_sigma=truth_sigma)
     if "landmark_id" not in b:
         data = _associated(data, cfg)
     return data
+
+
+def _covariances(path: Path, odo: dict, columns: tuple[str, ...]) -> np.ndarray:
+    """Each step's covariance of its increment ``(K, 3, 3)`` from the upper triangle's columns;
+    one line naming the first row whose matrix is not positive semi-definite."""
+    missing = [c for c in columns if c not in odo]
+    require(not missing, f"{path}: the increments' covariance needs every one of {', '.join(columns)} "
+                         f"(missing: {', '.join(missing)})")
+    n = len(odo["t_s"]) - 1
+    cov = np.zeros((n, 3, 3))
+    for c, (i, j) in zip(columns, TRIANGLE, strict=True):
+        cov[:, i, j] = cov[:, j, i] = odo[c][:n]
+    low = np.linalg.eigvalsh(cov).min(axis=1) < -1e-12 * np.abs(cov).max(axis=(1, 2))
+    if low.any():
+        k = int(np.flatnonzero(low)[0])
+        raise WorkbenchError(f"{path}, line {odo['lines'][k]}, columns {', '.join(columns)}: the increment's "
+                             "covariance is not positive semi-definite")
+    return cov
 
 
 def _associated(data: OmniData, cfg: OmniConfig) -> OmniData:

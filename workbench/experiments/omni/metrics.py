@@ -12,6 +12,7 @@ import math
 import numpy as np
 
 from workbench.estimation import consistency
+from workbench.estimation import metrics as em
 from workbench.estimation.alignment import umeyama
 from workbench.experiments import truthfree
 from workbench.experiments.metric import Metric, MetricContext, Values
@@ -108,6 +109,29 @@ def sigma_heading(data: OmniData, est: SlamEstimate, ctx: MetricContext) -> Valu
 def nees(data: OmniData, est: SlamEstimate, ctx: MetricContext) -> Values:
     """The pose's NEES (3 dof) at each grid step."""
     return Values(evaluate.pose_nees(_errors(data, est, ctx), _pose(data, est, ctx)[1]), _t(data))
+
+
+def fix_nees(data: OmniData, est: SlamEstimate, ctx: MetricContext) -> Values | None:
+    """The position's NEES (2 dof) at each grid step where the truth is a position fix: a log's
+    ``truth.csv`` with a ``sigma_m`` (a GPS track's noise) or without headings. The fix's own noise
+    is added to the estimate's covariance, ``e' (P_xy + sigma^2 I)^-1 e``: the error against a
+    noisy fix is the estimate's error plus the fix's, independent of it, so a consistent estimator
+    is chi-square with 2 degrees of freedom against it too. None where the truth is a whole pose
+    known exactly (the pose NEES, ``anees``, holds)."""
+    sigma = data.truth_sigma
+    truth = data.truth[data.grid]
+    if not np.isfinite(truth[:, :2]).any() or (sigma is None and not np.isnan(truth[:, 2]).all()):
+        return None
+    e = _errors(data, est, ctx)[:, :2]
+    cov = _pose(data, est, ctx)[1][:, :2, :2].copy()
+    if sigma is not None:
+        cov += np.nan_to_num(np.asarray(sigma, float)[data.grid])[:, None, None] ** 2 * np.eye(2)
+    ok = np.isfinite(e).all(axis=1) & np.isfinite(cov).all(axis=(1, 2))
+    out = np.full(len(e), np.nan)
+    if ok.any():
+        good = np.flatnonzero(ok)[np.linalg.det(cov[ok]) > 0]
+        out[good] = em.nees(e[good], cov[good])
+    return Values(out, _t(data))
 
 
 def disagreement(data: OmniData, est: SlamEstimate, ctx: MetricContext) -> Values | None:
@@ -261,6 +285,9 @@ METRICS: tuple[Metric, ...] = (
     Metric("sigma_y_max", sigma_y, "m", "largest own sigma of y", reduce="max"),
     Metric("sigma_heading_max", sigma_heading, "deg", "largest own heading sigma", reduce="max",
            label="sigma head max deg"),
+    Metric("fix_nees", fix_nees, "", "the position's NEES against a position fix (a GPS track), its noise added to "
+           "the estimate's covariance (2 dof), mean over the fixes and runs", reduce="mean", dimension=2,
+           label="fix NEES"),
     Metric("anees", nees, "", "the pose's NEES (3 dof), mean over the steps and runs", reduce="mean", dimension=3,
            label="ANEES"),
     Metric("disagreement", disagreement, "", "a causal estimator's pose against the run's smoother's, normalised "
@@ -313,7 +340,7 @@ TABLE = ("position_rmse", "position_max", "heading_rmse", "heading_max", "map_rm
          "sigma_heading_max", "anees", "landmarks", "init_seconds_median", "seconds")
 """The results table's columns."""
 
-CURVES: tuple[str, ...] = ()
+CURVES: tuple[str, ...] = ("fix_nees",)
 """Built-in metrics the recording's "metrics" tab draws over runs (beside every plugin's)."""
 
 BOUNDS = (("position", "m", "position_bound", "position_efficiency"), ("heading", "deg", "heading_bound",

@@ -6,6 +6,11 @@ Poses are ``(x, y, phi)``; a control ``u`` acts over one step ``dt``.
   ``y += dt V sin(phi + gamma)``, ``phi += dt V sin(gamma) / L``.
 * ``unicycle``, ``u = (v, w)`` (MRCLAM's odometry): ``x += dt v cos phi``,
   ``y += dt v sin phi``, ``phi += dt w``.
+* ``increments``, ``u = (dx, dy, dphi)``: the relative pose from one step to the next in the body
+  frame at the step's start, the graph-SLAM convention (g2o's ``EDGE_SE2``, a wheel-odometry
+  node's integrated output): ``x += dx cos phi - dy sin phi``, ``y += dx sin phi + dy cos phi``,
+  ``phi += dphi``; its noise is each step's own covariance of ``u`` (``U`` per step, from the log)
+  or ``diag(sigma_u^2)`` (three sigmas) where the log gives none; never a density.
 
 The covariance (8): ``P' = F_R P F_R' + F_U U F_U' + Q`` with ``F_R = df/dx_R``, ``F_U = df/du``.
 The noise is white per step by default (the paper's reading, ``U = diag(sigma_u^2)`` and ``Q``
@@ -25,7 +30,7 @@ import numpy as np
 
 from workbench.estimation.angles import wrap
 
-MODELS = ("bicycle", "unicycle")
+MODELS = ("bicycle", "unicycle", "increments")
 
 
 @dataclass(frozen=True)
@@ -35,7 +40,7 @@ class Motion:
 
     model: str
     wheelbase: float
-    sigma_u: tuple[float, float]
+    sigma_u: tuple[float, ...]  # per control: two, three for ``increments``
     sigma_q: tuple[float, float, float] = (0.0, 0.0, 0.0)
     per_second: bool = False
 
@@ -47,6 +52,12 @@ class Motion:
 
     def integrate(self, start: np.ndarray, controls: np.ndarray, dt: np.ndarray) -> np.ndarray:
         """Poses ``(K+1, 3)`` from ``start`` through ``controls (K, 2)`` over steps ``dt (K,)``."""
+        if self.model == "increments":
+            phi = start[2] + np.concatenate([[0.0], np.cumsum(controls[:, 2])])
+            c, s = np.cos(phi[:-1]), np.sin(phi[:-1])
+            x = start[0] + np.concatenate([[0.0], np.cumsum(controls[:, 0] * c - controls[:, 1] * s)])
+            y = start[1] + np.concatenate([[0.0], np.cumsum(controls[:, 0] * s + controls[:, 1] * c)])
+            return np.stack([x, y, wrap(phi)], axis=1)
         dt = np.broadcast_to(np.asarray(dt, float), (len(controls),))
         phi = start[2] + np.concatenate([[0.0], np.cumsum(dt * self.heading_rates(controls))])
         course = phi[:-1] + (controls[:, 1] if self.model == "bicycle" else 0.0)
@@ -57,8 +68,18 @@ class Motion:
 
     def jacobians(self, poses: np.ndarray, controls: np.ndarray, dt: np.ndarray
                   ) -> tuple[np.ndarray, np.ndarray]:
-        """``F_R (K, 3, 3)`` and ``F_U (K, 3, 2)`` of (8) at ``poses (K, 3)`` (the step's start)."""
+        """``F_R (K, 3, 3)`` and ``F_U (K, 3, 2)`` of (8) at ``poses (K, 3)`` (the step's start);
+        ``F_U (K, 3, 3)``, the step's rotation, for ``increments``."""
         k = len(controls)
+        if self.model == "increments":
+            c, s = np.cos(poses[:, 2]), np.sin(poses[:, 2])
+            dx, dy = controls[:, 0], controls[:, 1]
+            fr = np.broadcast_to(np.eye(3), (k, 3, 3)).copy()
+            fr[:, 0, 2] = -s * dx - c * dy
+            fr[:, 1, 2] = c * dx - s * dy
+            fu = np.zeros((k, 3, 3))
+            fu[:, 0, 0], fu[:, 0, 1], fu[:, 1, 0], fu[:, 1, 1], fu[:, 2, 2] = c, -s, s, c, 1.0
+            return fr, fu
         dt = np.broadcast_to(np.asarray(dt, float), (k,))
         v = controls[:, 0]
         course = poses[:, 2] + (controls[:, 1] if self.model == "bicycle" else 0.0)
@@ -85,9 +106,18 @@ class Motion:
 
         ``control_var (K, 2)``, if given, is each step's own extra variance of its control (not a
         density: the variance of the step's mean control, as :attr:`.scenario.OmniData.control_var`
-        holds it), added to ``U`` as ``F_U diag(control_var) F_U'``.
+        holds it), added to ``U`` as ``F_U diag(control_var) F_U'``. For ``increments``,
+        ``control_var (K, 3, 3)`` is each step's whole covariance of its increment (NaN rows: the
+        sigmas' ``diag(sigma_u^2)``), ``F_U U_k F_U'``.
         """
         u = np.diag(np.square(self.sigma_u))
+        if self.model == "increments":
+            U = np.broadcast_to(u, (len(fu), 3, 3)).copy()
+            if control_var is not None:
+                cv = np.asarray(control_var, float)
+                own = np.isfinite(cv).all(axis=(1, 2))
+                U[own] = cv[own]
+            return fu @ U @ fu.transpose(0, 2, 1) + np.diag(np.square(self.sigma_q))
         q = np.diag(np.square(self.sigma_q))
         if not self.per_second:
             noise = fu @ u @ fu.transpose(0, 2, 1) + q

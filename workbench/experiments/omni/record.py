@@ -87,7 +87,7 @@ def _switch_curves(d) -> dict[str, views.Curves]:
     """A real log's odometry steps whose command switched at a time the log does not say
     (:func:`.real.between`): the heading sigma that adds over the step (deg), at the step's start,
     where it is at least ``SWITCH_SHOWN``; the estimators lean on the bearings there."""
-    if d.control_var is None:
+    if d.control_var is None or np.ndim(d.control_var) != 2:  # (increments carry a covariance, no switch)
         return {}
     dt = np.diff(d.t)
     sigma = np.degrees(np.sqrt(d.control_var[:, 1]) * dt)

@@ -53,6 +53,7 @@ class OmniData:
     grid: np.ndarray | None = None
     repairs: dict | None = None   # what a real log needed to be read (mrclam.MrclamLog.repairs), and its drops
     control_var: np.ndarray | None = None
+    truth_sigma: np.ndarray | None = None  # (K,) the truth's position sigma per axis, m (a GPS fix's); None: exact
 
     @property
     def dt(self) -> np.ndarray:
