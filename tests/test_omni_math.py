@@ -109,11 +109,11 @@ def test_gate_accepts_a_wide_baseline_and_rejects_near_parallel_rays():
 
 # --- (7)-(8): motion models --------------------------------------------------------------
 
-@pytest.mark.parametrize("model", ["bicycle", "unicycle"])
+@pytest.mark.parametrize("model", ["bicycle", "unicycle", "increments"])
 def test_motion_jacobians_match_finite_differences(model):
-    m = Motion(model, 4.0, (0.1, 0.05))
+    m = Motion(model, 4.0, (0.1, 0.05, 0.01) if model == "increments" else (0.1, 0.05))
     pose = np.array([[1.0, 2.0, 0.7]])
-    u = np.array([[3.0, 0.2]])
+    u = np.array([[0.3, -0.05, 0.02]]) if model == "increments" else np.array([[3.0, 0.2]])
     dt = 0.05
     fr, fu = m.jacobians(pose, u, dt)
     h = 1e-6
@@ -122,8 +122,30 @@ def test_motion_jacobians_match_finite_differences(model):
         return m.integrate(p, c[None], dt)[-1]
 
     num_r = np.stack([(f(pose[0] + h * e, u[0]) - f(pose[0] - h * e, u[0])) / (2 * h) for e in np.eye(3)], 1)
-    num_u = np.stack([(f(pose[0], u[0] + h * e) - f(pose[0], u[0] - h * e)) / (2 * h) for e in np.eye(2)], 1)
+    num_u = np.stack([(f(pose[0], u[0] + h * e) - f(pose[0], u[0] - h * e)) / (2 * h) for e in np.eye(u.shape[1])], 1)
     assert np.allclose(fr[0], num_r, atol=1e-6) and np.allclose(fu[0], num_u, atol=1e-6)
+    if model == "increments":  # the body frame's increment, rotated to the world: by hand
+        assert np.allclose(f(pose[0], u[0]), [1.0 + 0.3 * math.cos(0.7) + 0.05 * math.sin(0.7),
+                                              2.0 + 0.3 * math.sin(0.7) - 0.05 * math.cos(0.7), 0.72])
+        own = np.diag([1e-4, 4e-4, 1e-6])   # a step's own covariance replaces the sigmas' where given
+        noise = m.step_noise(fu, control_var=np.stack([own, np.full((3, 3), np.nan)]) [:1])
+        assert np.allclose(noise[0], fu[0] @ own @ fu[0].T)
+        assert np.allclose(m.step_noise(fu)[0], fu[0] @ np.diag([0.01, 0.0025, 1e-4]) @ fu[0].T)
+
+
+def test_the_bearing_residual_by_hand():
+    """One bearing from (0, 0, 0) to a landmark at (1, 1): 45 deg; measured 0.01 rad more, sigma
+    0.01: residual 1; 0.1 more: truncated at the 99 % gate, sqrt(6.635)."""
+    from workbench.experiments.omni.estimate import SlamEstimate
+    from workbench.experiments.omni.metrics import RESIDUAL_CAP, bearing_residual
+
+    data = simulate(make_config("paper", duration=2.0), np.random.default_rng(0))
+    est = SlamEstimate("x", np.array([0]), np.zeros((1, 3)), map_steps=np.array([0]), map_mean=np.array([[[1.0, 1.0]]]))
+    for off, want in ((0.01, 1.0), (-0.005, 0.5), (0.1, math.sqrt(RESIDUAL_CAP))):
+        one = replace(data, meas_step=np.array([0]), meas_lm=np.array([0]), meas_bearing=np.array([math.pi / 4 + off]),
+                      sigma_bearing=0.01)
+        assert bearing_residual(one, est).values == pytest.approx([want])
+    assert bearing_residual(one, replace(est, map_mean=np.full((1, 1, 2), np.nan))) is None
 
 
 def test_integrate_is_the_step_by_step_recursion_7():

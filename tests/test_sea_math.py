@@ -157,3 +157,24 @@ def test_ekf_initial_covariance_is_pd(paper_cfg):
     data = run.make_data(paper_cfg, 0)
     _, P = ekf.initial_state(data, 0, 10.0)
     assert np.linalg.eigvalsh(P).min() > 0
+
+
+def test_the_residual_of_an_estimate_that_used_the_measurement():
+    """``r' (R - H P H')^-1 r``: by hand, and NaN where the estimate claims more than the
+    measurement's noise (``R - H P H'`` indefinite); over seeded runs, the filters' and the
+    smoother's residuals are chi-square with 2 dof (the 95 % band of the mean over the runs), the
+    geometric inverse fits each measurement exactly (0), the RLS, without a covariance, a figure."""
+    from workbench.estimation import consistency
+
+    r = np.array([[1.0, 0.0], [1.0, 1.0]])
+    R = np.stack([np.diag([2.0, 1.0])] * 2)
+    HPH = np.stack([np.diag([1.0, 0.0]), np.diag([3.0, 0.0])])
+    out = consistency.residual(r, R, HPH)
+    assert out[0] == pytest.approx(1.0) and np.isnan(out[1])
+    assert consistency.residual(r, R)[0] == pytest.approx(0.5)
+    res = workbench.run("sea", runs=6, duration=30.0)
+    e = res.metrics["estimators"]
+    lo, hi = metrics.chi2_band(2, 6)
+    for name in ("ekf", "gtsam", "isam2"):
+        assert lo < e[name]["angle_residual"] < hi, (name, e[name]["angle_residual"])
+    assert e["geometric"]["angle_residual"] < 1e-12 and e["rls"]["angle_residual"] > 0.1
