@@ -52,6 +52,10 @@ def test_without_truth(tmp_path):
     assert r.returncode == 0, r.stderr
     stats = json.loads(m.read_text())["estimators"]
     assert stats["recurrent-search"]["position_error"] is None
+    # the one truth-free verdict a pair has: each estimate against the navigation prior it fused
+    for name in ("recurrent-search-posterior", "gtsam-ba"):
+        assert 0 < stats[name]["prior_disagreement"] < 100 and stats[name]["consistent_without_truth"] is not None
+    assert stats["navigation"].get("prior_disagreement") is None  # (the prior itself)
     assert out.stat().st_size > 0
 
 

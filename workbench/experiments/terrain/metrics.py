@@ -83,6 +83,31 @@ def nees(data: TerrainData, est: Estimate) -> Values | None:
     return Values([float(em.nees(_position(data, est), cov))])
 
 
+def prior_disagreement(data: TerrainData, est: Estimate, ctx: MetricContext) -> Values | None:
+    """Image II's estimated orientation against the navigation system's measured one, normalised by
+    the navigation prior's covariance less the estimate's, ``d' (P_nav - P)^-1 d`` (the pose, 6 dof,
+    where the estimator gives ``pose_cov``; else the position, 3 dof): the estimate fuses the
+    images with that prior, so with both consistent ``d`` has covariance ``P_nav - P`` (the same
+    reading as a filter against its smoother, :func:`~workbench.estimation.consistency.disagreement`),
+    and the figure's mean over runs is its dimension whatever the errors' distribution (its band is
+    chi-square's: exact for Gaussian errors). The prior is :func:`.navigation.prior_covariance`
+    mapped to image II (the common mode adds the velocity errors over the interval). Truth-free:
+    the one verdict a log without the true orientation has. None for an estimate without a
+    covariance, or one that claims no more than the prior (the navigation solution itself)."""
+    from workbench.estimation import consistency
+    from workbench.experiments.terrain import navigation
+
+    cov = est.pose_cov if est.pose_cov is not None else est.position_cov
+    if cov is None or not np.isfinite(cov).all():
+        return None
+    n = len(cov)
+    M = navigation.error_map(ctx.cfg.mode, data.scene.interval)[1]
+    prior = (M @ navigation.prior_covariance(ctx.cfg) @ M.T)[:n, :n]
+    d = np.r_[est.position[1] - data.measured.position[1], wrap(est.angles[1] - data.measured.angles[1])][:n]
+    v = consistency.disagreement(d[None], prior[None], np.zeros((1, n)), cov[None])
+    return Values(v, dof=n) if np.isfinite(v).all() else None
+
+
 def _extra(key: str):
     def fn(data: TerrainData, est: Estimate) -> Values | None:
         return Values([float(est.extras[key])]) if key in est.extras else None
@@ -160,6 +185,10 @@ METRICS: tuple[Metric, ...] = (
            "(the paper's Fig. 3)", reduce="mean", across="mean", label="dR/max", fmt=".3f"),
     Metric("anees", nees, "", "image II's position NEES (3 dof), mean over runs", reduce="mean", dimension=3,
            label="ANEES"),
+    Metric("prior_disagreement", prior_disagreement, "", "image II's estimate against the navigation system's "
+           "measured orientation, normalised by the prior's covariance less the estimate's (6 dof with the pose's "
+           "covariance, 3 with the position's; truth-free), mean over runs", reduce="mean", dimension=0,
+           truth_free=True, label="vs prior"),
     Metric("kappa", _extra("kappa"), "", "the search's posterior: the node sum's variance inflation, mean over runs",
            reduce="mean", across="mean"),
     Metric("effective_nodes", _extra("effective_nodes"), "", "the search's posterior: its independent nodes, mean "
