@@ -97,7 +97,7 @@ def filtering(data: OmniData, kf: graph.Keyframes) -> np.ndarray:
             for row, lm in enumerate(lms):
                 H[row, slot[lm]:slot[lm] + 2] = -d[row, 1] / r2[row], d[row, 0] / r2[row]
             PH = P @ H.T
-            S = H @ PH + var * np.eye(len(lms))
+            S = H @ PH + (var * np.eye(len(lms)) if data.meas_sigma is None else np.diag(kf.sigma(e) ** 2))
             P = P - PH @ np.linalg.solve(S, PH.T)
             P = 0.5 * (P + P.T)
         out[e] = P[:3, :3]
@@ -122,10 +122,11 @@ def smoothing(data: OmniData, kf: graph.Keyframes) -> tuple[np.ndarray, np.ndarr
     noise = gtsam.noiseModel.Isotropic.Sigma(1, data.sigma_bearing)
     seen = np.zeros(N, bool)
     for e in range(E):
-        for lm in kf.bearings[e][0]:
+        for lm, sigma in zip(kf.bearings[e][0], kf.sigma(e), strict=True):
             lm = int(lm)
             d = data.landmarks[lm] - truth[e, :2]
-            g.add(gtsam.BearingFactor2D(X(e), L(lm), gtsam.Rot2(math.atan2(d[1], d[0]) - truth[e, 2]), noise))
+            own = noise if data.meas_sigma is None else gtsam.noiseModel.Isotropic.Sigma(1, float(sigma))
+            g.add(gtsam.BearingFactor2D(X(e), L(lm), gtsam.Rot2(math.atan2(d[1], d[0]) - truth[e, 2]), own))
             seen[lm] = True
     prior = gtsam.noiseModel.Isotropic.Sigma(2, LANDMARK_PRIOR)
     for lm in np.flatnonzero(seen):

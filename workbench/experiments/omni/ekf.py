@@ -152,7 +152,11 @@ class BearingEkf:
         h, H = self._predicted(self.x, off)
         nu = wrap(bearings - h)
         PH = self.P @ H.T
-        S = H @ PH + self.r * np.eye(len(lms))
+        own = index >= 0
+        r = np.full(len(lms), self.r)
+        if self.data.meas_sigma is not None and own.any():
+            r[own] = self.data.bearing_sigma(index[own]) ** 2
+        S = H @ PH + np.diag(r)
         if self.second_order:
             bias, extra = self._second_order(self.x, off)
             nu = wrap(nu - bias)
@@ -192,9 +196,10 @@ class BearingEkf:
             self.innovations.extend((t, float(v), float(s)) for v, s in zip(nu, np.diag(S), strict=True))
 
     # --- (1)-(5), (14)-(15) ----------------------------------------------------------------
-    def start(self, lm: int, bearing: float, step: int) -> None:
-        """Keep a first sighting: clone the pose into the state, or store it (paper)."""
-        sight = {"bearing": bearing, "step": step, "last": step}
+    def start(self, lm: int, bearing: float, step: int, r2: float | None = None) -> None:
+        """Keep a first sighting: clone the pose into the state, or store it (paper); ``r2``: the
+        bearing's own variance (default the log's one)."""
+        sight = {"bearing": bearing, "step": step, "last": step, "r2": self.r if r2 is None else r2}
         if self.mode == "clone":
             n = len(self.x)
             self.x = np.concatenate([self.x, self.x[:3]])
@@ -257,12 +262,13 @@ class BearingEkf:
             self._drop_clone(sight["offset"])
 
     def try_initialise(self, lm: int, bearing: float, step: int,
-                       accept: Callable[[np.ndarray, np.ndarray], bool] | None = None) -> bool:
+                       accept: Callable[[np.ndarray, np.ndarray], bool] | None = None, r2: float | None = None
+                       ) -> bool:
         """Triangulate from the first sighting and this one; augment the state if the gate passes
         (and ``accept(mean, P_ll)``, a caller's own test of the candidate landmark, if given)."""
         cfg, sight = self.cfg, self.pending[lm]
         sight["last"] = step
-        r2 = self.r
+        r2 = self.r if r2 is None else r2
         if self.mode == "clone":
             o = sight["offset"]
             idx = np.r_[o:o + 3, 0:3]
@@ -272,7 +278,7 @@ class BearingEkf:
         else:
             mu = np.concatenate([sight["pose"], self.x[:3], [sight["bearing"], bearing]])
             cov = np.diag(np.concatenate([sight["var"], np.diag(self.P[:3, :3]), [0.0, 0.0]]))
-        cov[6, 6] = cov[7, 7] = r2
+        cov[6, 6], cov[7, 7] = sight.get("r2", r2), r2
         att = triangulation.attempt(mu, cov, cfg.skew_gate, math.radians(cfg.min_parallax_deg), cfg.kappa)
         accepted, mean = att.accepted, att.mean
         G = triangulation.jacobian(mu)
@@ -339,14 +345,16 @@ def run(data: OmniData, cfg: OmniConfig, augmentation: str, name: str, trace: bo
         known = f.slot[lms] >= 0
         f.update(lms[known], bearings[known], idx[known], float(data.t[step]))
         now = data.t[step]
-        for lm, b in zip(lms[~known], bearings[~known], strict=True):
+        var = data.bearing_sigma(idx[~known]) ** 2 if data.meas_sigma is not None else [None] * int((~known).sum())
+        for lm, b, r2 in zip(lms[~known], bearings[~known], var, strict=True):
             lm = int(lm)
             if f.first_seen[lm] < 0:
                 f.first_seen[lm] = step
+            own = {} if r2 is None else {"r2": float(r2)}  # (each bearing's own variance, where the log gives it)
             if lm in f.pending:
-                f.try_initialise(lm, float(b), step)
+                f.try_initialise(lm, float(b), step, **own)
             else:
-                f.start(lm, float(b), step)
+                f.start(lm, float(b), step, **own)
         for lm in [k for k, s in f.pending.items() if now - data.t[s["last"]] > drop_steps]:
             f.drop(lm)
         poses[step], covs[step] = f.x[:3], f.P[:3, :3]

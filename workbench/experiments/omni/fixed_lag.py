@@ -112,13 +112,13 @@ def run(data: OmniData, cfg: OmniConfig, kf: graph.Keyframes, lag: float = LAG, 
         known[e] = graph._pose(current)
         lms, bearings = kf.bearings[e]
         entered = []
-        for lm, b in zip(lms, bearings, strict=True):
+        for lm, b, sigma in zip(lms, bearings, kf.sigma(e), strict=True):
             lm, b = int(lm), float(b)
             if first_seen[lm] < 0:
                 first_seen[lm] = steps[e]
             if not marks.inserted[lm]:  # held rays of marginalised keyframes cannot take part
                 marks.obs[lm] = [(k, bk) for k, bk in marks.obs[lm] if k >= oldest]
-            new, point = marks.observe(e, lm, b, known.__getitem__)
+            new, point = marks.observe(e, lm, b, known.__getitem__, sigma=float(sigma))
             for f in new:
                 factors.add(f)
             if point is not None:

@@ -65,6 +65,11 @@ class Keyframes:
     between: list[tuple[gtsam.Pose2, np.ndarray]]
     bearings: list[tuple[np.ndarray, np.ndarray]]
     dead_reckoning: np.ndarray
+    sigmas: list[np.ndarray] | None = None  # each keyframe's bearings' sigmas (rad), beside ``bearings``
+
+    def sigma(self, e: int) -> np.ndarray:
+        """Keyframe ``e``'s bearings' sigmas."""
+        return self.sigmas[e]
 
 
 def keyframes(data: OmniData, cfg: OmniConfig) -> Keyframes:
@@ -82,8 +87,9 @@ def keyframes(data: OmniData, cfg: OmniConfig) -> Keyframes:
     empty = (np.zeros(0, int), np.zeros(0))
     bearings = [(data.meas_lm[epochs[s]], data.meas_bearing[epochs[s]]) if s in epochs else empty
                 for s in steps]
+    sigmas = [data.bearing_sigma(epochs[s]) if s in epochs else np.zeros(0) for s in steps]
     dr = data.motion.integrate(data.start, data.controls, dt)
-    return Keyframes(steps, between, bearings, dr[steps])
+    return Keyframes(steps, between, bearings, dr[steps], sigmas)
 
 
 def _parallax_ok(pi: np.ndarray, bi: float, pj: np.ndarray, bj: float, min_parallax: float
@@ -114,18 +120,27 @@ class _Landmarks:
         self.outliers: list[tuple[int, int]] = []
         self.noise = bearing_noise(sigma, huber)
         self.min_parallax = min_parallax
+        self.default, self.huber = sigma, huber
+        self.own: dict[tuple[int, int], float] = {}  # (keyframe, landmark) -> its bearing's own sigma
+        self.noises: dict[float, gtsam.noiseModel.Base] = {}
 
     def factor(self, kf: int, lm: int, bearing: float) -> gtsam.BearingFactor2D:
-        return gtsam.BearingFactor2D(X(kf), L(lm), gtsam.Rot2.fromAngle(bearing), self.noise)
+        sigma = self.own.get((kf, lm))
+        noise = self.noise if sigma is None else self.noises.setdefault(sigma, bearing_noise(sigma, self.huber))
+        return gtsam.BearingFactor2D(X(kf), L(lm), gtsam.Rot2.fromAngle(bearing), noise)
 
     def observe(self, e: int, lm: int, bearing: float, pose_of, preset: np.ndarray | None = None,
-                tolerance: float = math.inf) -> tuple[list[gtsam.BearingFactor2D], np.ndarray | None]:
+                tolerance: float = math.inf, sigma: float | None = None
+                ) -> tuple[list[gtsam.BearingFactor2D], np.ndarray | None]:
         """Take bearing ``bearing`` of ``lm`` at keyframe ``e``. Returns the factors to add now
         (this one if ``lm`` is in the graph; every held one if it enters now) and, if it enters
         now, its starting point (``preset`` where given, else :meth:`try_insert`). With a finite
         ``tolerance`` (rad), once the first and the newest ray meet with parallax, the held rays
         are checked against each other (:func:`consensus`): those that disagree are left out,
-        listed in ``self.outliers`` as ``(keyframe, lm)``."""
+        listed in ``self.outliers`` as ``(keyframe, lm)``. ``sigma``: the bearing's own, where it is
+        not the default."""
+        if sigma is not None and sigma != self.default:
+            self.own[(e, lm)] = float(sigma)
         if self.inserted[lm]:
             return [self.factor(e, lm, bearing)], None
         self.obs[lm].append((e, bearing))
@@ -364,14 +379,15 @@ class _Incremental:
         sights, points = gtsam.NonlinearFactorGraph(), gtsam.Values()
         entered = []
         lms, bearings = kf.bearings[e]
-        for lm, b in zip(lms, bearings, strict=True):
-            lm, b = int(lm), float(b)
+        for lm, b, sigma in zip(lms, bearings, kf.sigma(e), strict=True):
+            lm, b, sigma = int(lm), float(b), float(sigma)
             if self.first_seen[lm] < 0:
                 self.first_seen[lm] = kf.steps[e]
-            if marks.inserted[lm] and not self._consistent(lm, b):
+            if marks.inserted[lm] and not self._consistent(lm, b, sigma):
                 self.rejected.add((e, lm))
                 continue
-            factors, point = marks.observe(e, lm, b, self.known.__getitem__, tolerance=self._tolerance())
+            factors, point = marks.observe(e, lm, b, self.known.__getitem__, tolerance=self._tolerance(),
+                                           sigma=sigma)
             for factor in factors:
                 sights.add(factor)
             if point is not None:
@@ -434,7 +450,7 @@ class _Incremental:
             return math.inf
         return math.sqrt(self.gate * (self.data.sigma_bearing ** 2 + self.chain_cov[2, 2]))
 
-    def _consistent(self, lm: int, bearing: float) -> bool:
+    def _consistent(self, lm: int, bearing: float, sigma: float | None = None) -> bool:
         """The chi-square gate on a bearing of a landmark in the graph (``nis_gate``, the same
         probability as the EKF's): its residual against the last LM pass's answer carried on with
         the odometry, over the variance of that prediction (the chain pose's covariance grown
@@ -446,7 +462,7 @@ class _Incremental:
         if not math.isfinite(self.gate):
             return True
         r2, s = _bearing_test(_pose(self.chain), self.chain_cov, self.points[lm], self.point_cov.get(lm),
-                              bearing, self.data.sigma_bearing)
+                              bearing, self.data.sigma_bearing if sigma is None else sigma)
         return r2 <= self.gate * s
 
     def _marginals(self, result: gtsam.Values, e: int) -> None:
@@ -688,14 +704,14 @@ def _solve(data: OmniData, cfg: OmniConfig, kf: Keyframes, start: Start):
     init_step = np.full(n_lm, -1)
     for e in range(E):  # which landmarks enter, where they start (their factors: _batch_graph)
         lms, bearings = kf.bearings[e]
-        for lm, b in zip(lms, bearings, strict=True):
+        for lm, b, sigma in zip(lms, bearings, kf.sigma(e), strict=True):
             lm, b = int(lm), float(b)
             if first_seen[lm] < 0:
                 first_seen[lm] = kf.steps[e]
             if (e, lm) in start.rejected:
                 continue
             preset = start.landmarks[lm] if np.isfinite(start.landmarks[lm]).all() else None
-            _, point = marks.observe(e, lm, b, lambda k: start.poses[k], preset)
+            _, point = marks.observe(e, lm, b, lambda k: start.poses[k], preset, sigma=float(sigma))
             if point is None:
                 continue
             values.insert(L(lm), point)
@@ -720,6 +736,7 @@ def robust_cost(data: OmniData, cfg: OmniConfig, kf: Keyframes, result: gtsam.Va
     e = np.concatenate([np.full(len(lms), k) for k, (lms, _) in enumerate(kf.bearings)]).astype(int)
     lm = np.concatenate([lms for lms, _ in kf.bearings]).astype(int)
     b = np.concatenate([bs for _, bs in kf.bearings])
+    sigma = np.concatenate(kf.sigmas) if kf.sigmas is not None else np.full(len(b), data.sigma_bearing)
     mapped = inserted[lm]
     r2 = np.full(len(lm), gate)  # a bearing of a landmark not in the map counts at the gate
     if mapped.any():
@@ -727,7 +744,7 @@ def robust_cost(data: OmniData, cfg: OmniConfig, kf: Keyframes, result: gtsam.Va
         points = {k: result.atPoint2(L(k)) for k in np.unique(lm[mapped]).tolist()}
         d = np.array([points[k] for k in lm[mapped].tolist()]) - pose[:, :2]
         r = wrap(b[mapped] - (np.arctan2(d[:, 1], d[:, 0]) - pose[:, 2]))
-        r2[mapped] = np.minimum(r * r / data.sigma_bearing ** 2, gate)
+        r2[mapped] = np.minimum(r * r / sigma[mapped] ** 2, gate)
     return float(cost + 0.5 * r2.sum())
 
 
@@ -742,8 +759,10 @@ def _batch_graph(data: OmniData, kf: Keyframes, marks: _Landmarks, rejected: set
     ``rejected`` (what :meth:`_Landmarks.observe` hands out over the run, held rays included)."""
     graph = _odometry_graph(data, kf)
     for e, (lms, bearings) in enumerate(kf.bearings):
-        for lm, b in zip(lms.tolist(), bearings.tolist(), strict=True):
+        for lm, b, sigma in zip(lms.tolist(), bearings.tolist(), kf.sigma(e).tolist(), strict=True):
             if marks.inserted[lm] and (e, lm) not in rejected:
+                if sigma != marks.default:
+                    marks.own[(e, lm)] = sigma
                 graph.add(marks.factor(e, lm, b))
     return graph
 
@@ -805,10 +824,10 @@ def _regate(data: OmniData, cfg: OmniConfig, kf: Keyframes, result: gtsam.Values
             continue
         pose = _pose(result.atPose2(X(e)))
         pose_cov = to_world(covs[e][None], np.array([pose[2]]))[0]
-        for lm, b in zip(lms.tolist(), bearings.tolist(), strict=True):
+        for lm, b, sigma in zip(lms.tolist(), bearings.tolist(), kf.sigma(e).tolist(), strict=True):
             if not inserted[lm]:
                 continue
-            r2, s = _bearing_test(pose, pose_cov, result.atPoint2(L(lm)), lm_cov[lm], b, data.sigma_bearing)
+            r2, s = _bearing_test(pose, pose_cov, result.atPoint2(L(lm)), lm_cov[lm], b, sigma)
             if r2 > gate * s:
                 out.add((e, lm))
     return out

@@ -270,7 +270,7 @@ def run_stage(data: OmniData, cam: MirrorCamera, cfg: OmniConfig, rng: np.random
     lms = np.full((assoc.n_tracks, 2), np.nan)
     lms[owner >= 0] = data.landmarks[owner[owner >= 0]]
     associated = replace(data, meas_step=steps_a[keep], meas_lm=assoc.track[keep], meas_bearing=bear_a[keep],
-                         landmarks=lms, landmark_ids=np.arange(assoc.n_tracks))
+                         meas_sigma=None, landmarks=lms, landmark_ids=np.arange(assoc.n_tracks))
     err = np.degrees(np.array(errors)) if errors else np.zeros(0)
     stats = {
         "frames": len(data.epochs()), "image_size": cam.size,

@@ -27,8 +27,8 @@ world frame's x, y in metres, headings in radians counter-clockwise from x:
                     control (a gap in a real log)
 ``bearings.csv``    ``t_s``, ``bearing_rad`` (from the heading, within +-pi), optionally
                     ``landmark_id`` (an integer; without the column the association front end
-                    that the image stage uses decides, :mod:`.associate`) and ``sigma_rad`` (one
-                    value for the whole log: the estimators take one bearing sigma); each bearing
+                    that the image stage uses decides, :mod:`.associate`) and ``sigma_rad`` (each
+                    bearing's own sigma: every estimator weighs each bearing by it); each bearing
                     is taken at the odometry row nearest its time
 ``truth.csv``       optional: ``t_s``, ``x_m``, ``y_m``, optionally ``phi_rad``: the robot's true
                     pose (a sparse fix, a GPS track, scores the steps it falls on), optionally
@@ -85,6 +85,9 @@ def write(data: OmniData, folder: Path, force: bool = False) -> list[Path]:
              "bearings.csv": (("t_s", "bearing_rad", "landmark_id"),
                               np.column_stack([data.t[data.meas_step], data.meas_bearing,
                                                data.landmark_ids[data.meas_lm]]))}
+    if data.meas_sigma is not None:
+        columns, rows = files["bearings.csv"]
+        files["bearings.csv"] = ((*columns, "sigma_rad"), np.column_stack([rows, data.meas_sigma]))
     truth = np.isfinite(data.truth[:, :2]).all(axis=1)
     if truth.any():
         columns, rows = ("t_s", "x_m", "y_m", "phi_rad"), np.column_stack([data.t, data.truth])
@@ -153,12 +156,17 @@ def read(folder: Path, cfg: OmniConfig) -> OmniData:
     logfiles.within(bearings_path, b, "bearing_rad", math.pi)
     step = _nearest(bearings_path, b, odo["t_s"])
     sigma = logfiles.number(where, m, "sigma_bearing_rad", positive=True)
+    meas_sigma = None
     if "sigma_rad" in b:
         sig = b["sigma_rad"]
-        require(np.all(sig > 0) and np.ptp(sig) <= 1e-12 * sig.max(),
-                f"{bearings_path}: sigma_rad must be one positive value for the whole log (the estimators take "
-                f"one bearing sigma), got {sig.min():g} to {sig.max():g}")
-        sigma = float(sig[0])
+        bad = np.flatnonzero(sig <= 0)
+        if bad.size:
+            raise WorkbenchError(f"{bearings_path}, line {b['lines'][int(bad[0])]}, column sigma_rad: "
+                                 f"{float(sig[bad[0]])!r} is not a positive sigma")
+        if np.ptp(sig) <= 1e-12 * sig.max():
+            sigma = float(sig[0])
+        else:  # each bearing its own; what takes one sigma (the association's gate) takes their RMS
+            meas_sigma, sigma = sig, float(np.sqrt(np.mean(sig ** 2)))
 
     survey_ids, survey = np.zeros(0, np.int64), np.zeros((0, 2))
     if logfiles.has(folder, "landmarks"):
@@ -203,7 +211,8 @@ def read(folder: Path, cfg: OmniConfig) -> OmniData:
         t=t, controls=u, motion=Motion(model, wheelbase, sigma_u, tuple(q) if q is not None else (0.0,) * 3,
                                        per_second=per_second),
         start=start, start_cov=start_cov, truth=truth, meas_step=step[order], meas_lm=meas_lm[order],
-        meas_bearing=b["bearing_rad"][order], sigma_bearing=sigma, landmark_ids=landmark_ids, landmarks=landmarks,
+        meas_bearing=b["bearing_rad"][order], sigma_bearing=sigma,
+        meas_sigma=None if meas_sigma is None else meas_sigma[order], landmark_ids=landmark_ids, landmarks=landmarks,
         fov=min(fov, 2.0 * math.pi), max_range=logfiles.number(where, m, "max_range_m", positive=True,
                                                                default=cfg.max_range),
         label=str(m.get("label") or f"log {folder.name}"), walls=walls, repairs=repairs, control_var=control_var,
@@ -242,6 +251,7 @@ def _associated(data: OmniData, cfg: OmniConfig) -> OmniData:
     keep = assoc.track >= 0
     csvfile.count(data.repairs, "bearings_unassociated", int((~keep).sum()))
     return replace(data, meas_step=data.meas_step[keep], meas_lm=assoc.track[keep],
+                   meas_sigma=None if data.meas_sigma is None else data.meas_sigma[keep],
                    meas_bearing=data.meas_bearing[keep], landmark_ids=np.arange(assoc.n_tracks),
                    landmarks=np.full((assoc.n_tracks, 2), np.nan))
 

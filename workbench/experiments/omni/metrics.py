@@ -133,7 +133,7 @@ def bearing_residual(data: OmniData, est: SlamEstimate) -> Values | None:
     p = np.where((est.steps[where] == data.meas_step)[:, None], pose[where], np.nan)
     m = lm[data.meas_lm] if len(lm) else np.full((len(data.meas_step), 2), np.nan)
     predicted = np.arctan2(m[:, 1] - p[:, 1], m[:, 0] - p[:, 0]) - p[:, 2]
-    r2 = (wrap(data.meas_bearing - predicted) / data.sigma_bearing) ** 2
+    r2 = (wrap(data.meas_bearing - predicted) / data.bearing_sigma()) ** 2
     return Values(np.sqrt(np.minimum(r2, RESIDUAL_CAP)), data.t[data.meas_step])
 
 

@@ -26,12 +26,14 @@ class OmniData:
     (V, steering) or MRCLAM's unicycle (v, w)); ``start`` / ``start_cov`` the known start pose
     ``(x, y, phi)``. Bearing ``i`` (rad, from the heading, wrapped) is taken at pose
     ``meas_step[i]`` of landmark index ``meas_lm[i]`` (a row of ``landmarks``), with noise
-    ``sigma_bearing`` (rad). ``truth (K, 3)`` and ``landmarks (N, 2)`` are for evaluation: an
-    estimator must not read them. ``grid`` are the steps every estimator is scored at (the
-    bearing epochs, and one at least every ``keyframe_every`` seconds). ``control_var (K, 2)``,
-    where the log leaves a step's control uncertain beyond ``motion``'s noise (a gap in a real
-    log, :mod:`.real`), is that step's own extra variance of its (mean) control; ``None``: none.
-    Estimators read a stretch of odometry with :meth:`odometry`.
+    ``sigma_bearing`` (rad), or its own ``meas_sigma[i]`` where a log gives each one
+    (:meth:`bearing_sigma`; ``sigma_bearing`` is then their RMS, for what takes one).
+    ``truth (K, 3)`` and ``landmarks (N, 2)`` are for evaluation: an estimator must not read them. ``grid`` are
+    the steps every estimator is scored at (the bearing epochs, and one at least every
+    ``keyframe_every`` seconds). ``control_var (K, 2)``, where the log leaves a step's control
+    uncertain beyond ``motion``'s noise (a gap in a real log, :mod:`.real`), is that step's own
+    extra variance of its (mean) control; ``None``: none. Estimators read a stretch of odometry with
+    :meth:`odometry`.
     """
 
     t: np.ndarray
@@ -54,6 +56,13 @@ class OmniData:
     repairs: dict | None = None   # what a real log needed to be read (mrclam.MrclamLog.repairs), and its drops
     control_var: np.ndarray | None = None
     truth_sigma: np.ndarray | None = None  # (K,) the truth's position sigma per axis, m (a GPS fix's); None: exact
+    meas_sigma: np.ndarray | None = None   # each bearing's own sigma, rad (a log's); None: sigma_bearing for all
+
+    def bearing_sigma(self, idx: np.ndarray | None = None) -> np.ndarray:
+        """The sigma of bearings ``idx`` (all: None), rad: each one's own where the log gives them."""
+        idx = np.arange(len(self.meas_bearing)) if idx is None else np.asarray(idx, int)
+        return (np.asarray(self.meas_sigma, float)[idx] if self.meas_sigma is not None
+                else np.full(len(idx), float(self.sigma_bearing)))
 
     @property
     def dt(self) -> np.ndarray:
