@@ -171,7 +171,7 @@ def flagged(title: str, stats: Mapping | None, truth: bool) -> str:
     truth, the NEES; else without it, :func:`.markdown.verdicts`) named after it."""
     key = "consistent_with_truth" if truth else "consistent_without_truth"
     failing = [n for n, e in (stats or {}).get("estimators", {}).items() if e.get(key) is False]
-    return title + (f"; NOT consistent: {', '.join(failing)}" if failing else "")
+    return title + (f"; failing: {', '.join(failing)}" if failing else "")
 
 
 def how_to_read(first: Any, truth: str) -> list[str]:

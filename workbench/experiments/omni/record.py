@@ -22,6 +22,7 @@ import rerun.blueprint as rrb
 
 from workbench.estimation import metrics
 from workbench.experiments import plots as metric_plots
+from workbench.experiments import truthfree
 from workbench.experiments.omni import metrics as omni_metrics
 from workbench.experiments.omni.evaluate import RunSummary, on_grid, smoothed_on_grid
 from workbench.experiments.omni.run import RunResult
@@ -146,7 +147,7 @@ def blueprint(names: list[str], scene: np.ndarray, curves: dict[str, views.Curve
         one_run = pair(("/errors/position", "/errors/heading"), ("position error (m)", "heading error (deg)"),
                        "errors (run 0)" if groups else "run 0", [], ("NEES (run 0)", [nees]))
     else:  # no truth: the smoother is the reference
-        nees = views.plot("/nees", metric_plots.flagged(f"disagreement with {reference} (3 dof), grey: 95 % band",
+        nees = views.plot("/nees", metric_plots.flagged(f"disagreement with {reference} (3 dof, grey band)",
                                                         stats, False), span, curves.get("/nees"), legend=bool(groups))
         one_run = pair(("/errors/position", "/errors/heading"),
                        (f"departure from {reference}, position (m)", f"departure from {reference}, heading (deg)"),
@@ -184,14 +185,44 @@ def layout(first: RunResult, runs: list[RunSummary], stats: dict | None = None) 
 
 def scene(first: RunResult) -> np.ndarray:
     """What the maps frame: the walls (the simulation) or the landmarks (MRCLAM), and the true path;
-    a log without its truth, the estimates' paths (what is not finite left out)."""
+    a log without its truth, the smoother's path (the reference), else the box of each estimate's
+    5-95 % quantiles (a filter that runs away does not shrink every map to a dot; what is not
+    finite left out)."""
     d = first.data
-    parts = [d.walls if d.walls is not None else d.landmarks, d.truth[first.grid, :2]]
-    if not np.isfinite(d.truth[first.grid]).any():
-        parts += [e.pose[:, :2] for e in first.estimates.values()]
+    parts = [d.walls if d.walls is not None else survey(first), d.truth[first.grid, :2]]
+    if not np.isfinite(d.truth[first.grid]).any():  # the smoother's path, else each estimate's bulk
+        ref = truthfree.smoother(first.estimators, first.estimates)
+        if ref is not None:
+            parts.append(first.estimates[ref].pose[:, :2])
+        else:
+            for e in first.estimates.values():
+                xy = e.pose[:, :2][np.isfinite(e.pose[:, :2]).all(axis=1)]
+                if len(xy):
+                    parts.append(np.quantile(xy, [0.05, 0.95], axis=0))
     xy = np.concatenate(parts)
     xy = xy[np.isfinite(xy).all(axis=1)]
     return xy if len(xy) else np.zeros((1, 2))
+
+
+def survey(first: RunResult) -> np.ndarray:
+    """The landmarks' surveyed places as the maps draw them: as given, or, for a log without the
+    robot's truth (its frame is the first pose's, not the survey's), moved onto the smoother's map
+    by their best rigid alignment (as ``aligned_map_rmse`` scores it) so they sit where the
+    estimates put them."""
+    d = first.data
+    if np.isfinite(d.truth[first.grid]).any():
+        return d.landmarks
+    ref = truthfree.smoother(first.estimators, first.estimates)
+    if ref is None:
+        return d.landmarks
+    from workbench.estimation.alignment import umeyama
+
+    mine = first.estimates[ref].final_map
+    both = np.isfinite(mine).all(axis=1) & np.isfinite(d.landmarks).all(axis=1)
+    if both.sum() < 3:
+        return d.landmarks
+    a = umeyama(d.landmarks[both], mine[both])
+    return a.apply(np.column_stack([d.landmarks, np.zeros(len(d.landmarks))]))[:, :2]
 
 
 def _rays(first: RunResult, pose: np.ndarray, length: float, only: np.ndarray | None = None
@@ -244,8 +275,9 @@ def record_run(rec: rr.RecordingStream, first: RunResult, zero: RunSummary) -> N
     if d.walls is not None:
         rec.log("/world/walls", rr.LineStrips3D([np.c_[d.walls, np.zeros(len(d.walls))]],
                                                 colors=[(120, 120, 120)], radii=[0.1]), static=True)
-    known = np.isfinite(d.landmarks).all(axis=1)  # (a log may not know where its landmarks are)
-    rec.log("/world/landmarks", rr.Points3D(np.c_[d.landmarks[known], np.zeros(known.sum())],
+    marks = survey(first)  # (a log without its truth: the survey aligned to the smoother's map)
+    known = np.isfinite(marks).all(axis=1)  # (a log may not know where its landmarks are)
+    rec.log("/world/landmarks", rr.Points3D(np.c_[marks[known], np.zeros(known.sum())],
                                             colors=[draw.color("truth")], radii=[0.25],
                                             labels=[str(i) for i in d.landmark_ids[known]], show_labels=False),
             static=True)
@@ -327,7 +359,9 @@ def how_to_read(first: RunResult, runs: int) -> str:
          f"- no truth of the robot: the run 0 tab shows, for each estimator, the smoother's ({first_reference(first)}) "
          "pose minus its own (its departure from the smoother: where a filter and the smoother part ways), and each "
          f"causal estimator's disagreement with the smoother, the difference weighted by the difference of their "
-         f"covariances (3 dof, inside its 95 % band {one[0]:.2f}-{one[1]:.2f} where both are consistent)")
+         f"covariances (3 dof, inside its 95 % band {one[0]:.2f}-{one[1]:.2f} where both are consistent); the "
+         "frame is the first pose's, and the landmark survey (white) is drawn moved onto the smoother's map by its "
+         "best rigid alignment")
         + "; own sigmas: the standard deviations each estimator claims"
         + ("; below them (a real log), the heading sigma each odometry step adds where a logged command "
            "switched at a time the log does not say (its gaps): there the estimators lean on the bearings."
