@@ -129,10 +129,11 @@ class RunSummary:
 
 def run_estimators(exp: Experiment, cfg: Any, run: int, estimators: list[Estimator], data: Any,
                    record: bool = False, threads: int = 1, **fields: Any) -> RunResult:
-    """Every estimator on ``data`` (each checked by the experiment's ``check``), as the
-    experiment's run result (its ``RunResult``, with ``fields`` beside the shared ones)."""
+    """Every estimator on ``data`` as they are told to see it (:meth:`Experiment.assumed`; each
+    checked by the experiment's ``check``), as the experiment's run result (its ``RunResult``,
+    with ``fields`` beside the shared ones; its ``data`` the data as they are)."""
     ctx = RunContext(run, record, threads)
-    estimates, failed = estimate_all(estimators, data, cfg, ctx, exp.check)
+    estimates, failed = estimate_all(estimators, exp.assumed(data, cfg), cfg, ctx, exp.check)
     return exp.result_type(data, estimates, {e.name: e for e in estimators}, failed, ctx.products(), config=cfg,
                            record=record, metrics=exp.metrics(cfg), **fields)
 
@@ -230,7 +231,16 @@ class Experiment:
                  record: bool = False) -> tuple[dict[str, Any], dict[str, str]]:
         """The selected estimators on a dataset you hand in (run k's, or one of your own), each
         checked and timed: the estimates by name and the failures."""
-        return estimate_all(self.select(estimators), data, cfg, RunContext(record=record), self.check)
+        return estimate_all(self.select(estimators), self.assumed(data, cfg), cfg, RunContext(record=record),
+                            self.check)
+
+    def assumed(self, data: Any, cfg: Any) -> Any:
+        """The dataset as the estimators see it: the data's own noise model, or where the config
+        sets what the estimators assume (``assume_*``, its package's ``run.assumed``) that instead.
+        What made the data, the truth, the bounds and the evaluation stay the data's: a
+        model-mismatch study varies only what the estimators are told."""
+        fn = self._optional("run", "assumed")
+        return data if fn is None else fn(data, cfg)
 
     # --- data and estimates
     @property

@@ -77,6 +77,15 @@ def _show(value: Any) -> str:
     return f"{value:g}" if isinstance(value, float) else str(value)
 
 
+def assumed(data: Any, cfg: Any, table: Mapping[str, tuple[str, Callable[[float], Any]]]) -> Any:
+    """``data`` with the noise the estimators assume where ``cfg`` sets it: ``table`` maps a config
+    field (``assume_*``, None: the data's own) to the dataset's attribute and the conversion of the
+    field's value to it (units). The data unchanged (the same object) where none is set."""
+    changes = {attr: convert(getattr(cfg, name)) for name, (attr, convert) in table.items()
+               if getattr(cfg, name, None) is not None}
+    return dataclasses.replace(data, **changes) if changes else data
+
+
 def config_json(cfg: Any) -> dict:
     """A config as JSON-ready values: every field, paths as text, tuples as lists (the one
     converter: recordings, metrics and sweeps store what it gives)."""

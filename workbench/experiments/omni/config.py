@@ -71,6 +71,11 @@ class OmniConfig(Config):
     sigma_gamma_deg: float = 3.0
     sigma_bearing_deg: float = None  # [1; from images 0.3]
     sigma_q: float = 0.0
+    # what the estimators assume instead of the data's own noise (None: the data's)
+    assume_sigma_v: float | None = None
+    assume_sigma_gamma_deg: float | None = None   # the paper's bicycle: steering
+    assume_sigma_w_deg: float | None = None       # a unicycle (MRCLAM, logs): yaw rate
+    assume_sigma_bearing_deg: float | None = None
     # the landmark initialiser (1)-(5)
     skew_gate: float = 0.3
     min_parallax_deg: float = by_scenario(2.0)
@@ -151,6 +156,11 @@ class OmniConfig(Config):
             require(math.isfinite(value) and value >= 0.0,
                     f"--{name.replace('_', '-')} must be a non-negative number (got {value})")
         require(self.sigma_bearing_deg > 0.0, "--sigma-bearing must be positive (bearings need a noise model)")
+        for name in ("assume_sigma_v", "assume_sigma_gamma_deg", "assume_sigma_w_deg", "assume_sigma_bearing_deg"):
+            value = getattr(self, name)
+            flag = "--" + name.replace("_deg", "").replace("_", "-")
+            require(value is None or (isinstance(value, (int, float)) and math.isfinite(value) and value > 0.0),
+                    f"{flag} must be a positive number (what the estimators assume), got {value}")
         for name in ("room", "speed", "duration", "dt", "wheelbase", "bearing_rate", "max_range",
                      "drop_after", "keyframe_every"):
             value = getattr(self, name)
@@ -212,6 +222,13 @@ OPTIONS: tuple[Option, ...] = (
     Option("sigma_w_deg", "mrclam: yaw-rate noise per step, deg/s.", flag="--sigma-w"),
     Option("sigma_q", "Extra process noise Q per step and axis (m, rad)."),
     Option("sigma_bearing_deg", "Bearing noise, deg [1; --from-images 0.3].", flag="--sigma-bearing"),
+    Option("assume_sigma_v", "What the estimators assume of the speed noise, m/s [default: the data's, --sigma-v]."),
+    Option("assume_sigma_gamma_deg", "paper: what the estimators assume of the steering noise, deg [default: the "
+           "data's].", flag="--assume-sigma-gamma"),
+    Option("assume_sigma_w_deg", "mrclam, log: what the estimators assume of the yaw-rate noise, deg/s [default: "
+           "the data's].", flag="--assume-sigma-w"),
+    Option("assume_sigma_bearing_deg", "What the estimators assume of the bearing noise, deg, for every bearing "
+           "[default: the data's].", flag="--assume-sigma-bearing"),
     Option("skew_gate", "Initialise a landmark when |skewness| < this."),
     Option("min_parallax_deg", "... and its rays' parallax is at least this, deg.", flag="--min-parallax"),
     Option("drop_after", "Forget a pending landmark unseen this long, s."),

@@ -76,7 +76,10 @@ def bounds(data: OmniData, cfg: OmniConfig, keyframes: graph.Keyframes | None = 
         return {}
     if not np.isfinite(data.landmarks[np.unique(data.meas_lm)]).all():
         return {}
-    kf = keyframes if keyframes is not None else graph.keyframes(data, cfg)
+    told = any(getattr(cfg, f"assume_{q}", None) is not None for q in ("sigma_v", "sigma_gamma_deg", "sigma_w_deg",
+                                                                         "sigma_bearing_deg"))
+    # (the estimators' keyframes carry the noise they were told; the bound is the data's own)
+    kf = keyframes if keyframes is not None and not told else graph.keyframes(data, cfg)
     return omni_bounds.variances(data, kf, {0.0, float("inf")})
 
 

@@ -34,6 +34,37 @@ class RunResult(contract.RunResult):
         return self.products.get("keyframes")
 
 
+def assumed(data: OmniData, cfg: OmniConfig) -> OmniData:
+    """The dataset as the estimators see it (:meth:`.contract.Experiment.assumed`): the odometry's
+    speed and steering (bicycle) or yaw-rate (unicycle) noise and the bearings' (each bearing's,
+    where a log gave its own) where the config sets what they assume (``--assume-sigma-*``), the
+    data's own elsewhere. A one-line error for a setting the data's motion model has not."""
+    import dataclasses
+    import math
+
+    from workbench.errors import require
+
+    motion, changes = data.motion, {}
+    turn = {"bicycle": ("assume_sigma_gamma_deg", "--assume-sigma-gamma"),
+            "unicycle": ("assume_sigma_w_deg", "--assume-sigma-w")}
+    for name, flag in (("assume_sigma_gamma_deg", "--assume-sigma-gamma"), ("assume_sigma_w_deg", "--assume-sigma-w"),
+                       ("assume_sigma_v", "--assume-sigma-v")):
+        if getattr(cfg, name) is not None:
+            ok = name == "assume_sigma_v" and motion.model in turn or turn.get(motion.model, ("",))[0] == name
+            require(ok, f"{flag}: this data's odometry is {motion.model}, which has no such noise")
+    sigma_u = list(motion.sigma_u)
+    if cfg.assume_sigma_v is not None:
+        sigma_u[0] = float(cfg.assume_sigma_v)
+    turning = getattr(cfg, turn[motion.model][0]) if motion.model in turn else None
+    if turning is not None:
+        sigma_u[1] = math.radians(turning)
+    if tuple(sigma_u) != tuple(motion.sigma_u):
+        changes["motion"] = dataclasses.replace(motion, sigma_u=tuple(sigma_u))
+    if cfg.assume_sigma_bearing_deg is not None:
+        changes.update(sigma_bearing=math.radians(cfg.assume_sigma_bearing_deg), meas_sigma=None)
+    return dataclasses.replace(data, **changes) if changes else data
+
+
 def make_data(cfg: OmniConfig, run: int) -> OmniData:
     """The run's dataset, its grid set (with ``from_images``, the image stage's bearings)."""
     return with_stage(cfg, run)[0]

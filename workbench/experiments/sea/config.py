@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -40,6 +41,10 @@ class SeaConfig(Config):
     sigma_beta_arcmin: float = 1.56
     sigma_observer: float = 1.0
     sigma_acc: float = by_scenario(0.1)
+    assume_sigma_alpha_arcmin: float | None = None  # what the estimators assume (None: the data's own)
+    assume_sigma_beta_arcmin: float | None = None
+    assume_sigma_observer: float | None = None
+    assume_sigma_acc: float | None = None
     course_deg: float = 50.0
     observer_velocity: tuple[float, float] = (2.55, 4.33)
     target_start: tuple[float, float] = (400.0, 600.0)
@@ -107,6 +112,11 @@ class SeaConfig(Config):
             require(value >= 0, f"noise --{_flag(name)} must not be negative, got {value}")
         require(self.sigma_alpha_arcmin > 0 and self.sigma_beta_arcmin > 0,
                 "angle noises must be positive: the estimators weight by them")
+        for name, flag in (("assume_sigma_alpha_arcmin", "alpha"), ("assume_sigma_beta_arcmin", "beta"),
+                           ("assume_sigma_observer", "observer"), ("assume_sigma_acc", "acc")):
+            value = getattr(self, name)
+            require(value is None or (isinstance(value, (int, float)) and math.isfinite(value) and value > 0),
+                    f"--assume-sigma-{flag} must be a positive number (what the estimators assume), got {value}")
         require(0.0 < self.lam <= 1.0, f"--lam must be in (0, 1], got {self.lam}")
         require(self.order_alpha >= 1 and self.order_beta >= 1, "AR orders must be at least 1")
         params = max(self.order_alpha, self.order_beta) + int(self.intercept)
@@ -175,6 +185,14 @@ OPTIONS: tuple[Option, ...] = (
     Option("sigma_beta_arcmin", "Elevation noise, arcmin.", flag="--sigma-beta"),
     Option("sigma_observer", "Observer position noise per axis, m."),
     Option("sigma_acc", "Target acceleration noise, m/s^2."),
+    Option("assume_sigma_alpha_arcmin", "What the estimators assume of the azimuth noise, arcmin "
+           "[default: the data's, --sigma-alpha].", flag="--assume-sigma-alpha"),
+    Option("assume_sigma_beta_arcmin", "What the estimators assume of the elevation noise, arcmin "
+           "[default: the data's].", flag="--assume-sigma-beta"),
+    Option("assume_sigma_observer", "What the estimators assume of the observer position noise, m "
+           "[default: the data's]."),
+    Option("assume_sigma_acc", "What the estimators assume of the target acceleration noise (their process "
+           "noise), m/s^2 [default: the data's, --sigma-acc]."),
     Option("height", "Camera height h, m."),
     Option("duration", "Run length, s."),
     Option("dt", "Time step, s."),

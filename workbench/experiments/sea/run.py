@@ -13,7 +13,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from workbench.errors import require
-from workbench.experiments import contract
+from workbench.estimation.angles import from_arcmin
+from workbench.experiments import contract, settings
 from workbench.experiments.estimator import Estimator, RunContext, estimate_all
 from workbench.experiments.sea.config import ALL_SHIPS, SeaConfig
 from workbench.experiments.sea.estimate import Estimate, check
@@ -113,10 +114,25 @@ def run_once(cfg: SeaConfig, run: int, estimators: list[Estimator], record: bool
     img = images.from_stage(data, stage)
     res = contract.run_estimators(EXPERIMENT, cfg, run, estimators, img, record, threads, images=stage,
                                   scenario_seen=data.seen)
-    sim, failed_sim = estimate_all(estimators, data, cfg, RunContext(run, False), check)
+    sim, failed_sim = estimate_all(estimators, assumed(data, cfg), cfg, RunContext(run, False), check)
     res.failed = {**failed_sim, **res.failed}
     res.simulated = (data, sim)
     return res
+
+
+ASSUMED = {"assume_sigma_alpha_arcmin": ("sigma_alpha", from_arcmin),
+           "assume_sigma_beta_arcmin": ("sigma_beta", from_arcmin),
+           "assume_sigma_observer": ("sigma_observer", float),
+           "assume_sigma_acc": ("sigma_acc", float)}
+"""What the estimators may be told instead of the data's own noise: config field -> the dataset's
+attribute and the unit's conversion."""
+
+
+def assumed(data: SeaData, cfg: SeaConfig) -> SeaData:
+    """The dataset as the estimators see it (:meth:`.contract.Experiment.assumed`): the angles',
+    the camera position's and the object's acceleration noise where the config sets what they
+    assume (``--assume-sigma-*``), the data's own elsewhere."""
+    return settings.assumed(data, cfg, ASSUMED)
 
 
 def write_log(data: SeaData, folder, force: bool = False) -> list:
