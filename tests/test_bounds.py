@@ -238,3 +238,26 @@ def test_omni_bounds_cover_a_gap_in_the_truth():
         for q in ("position", "heading"):
             assert np.isfinite(holed[d][q]).all()
             assert np.allclose(holed[d][q], whole[d][q], rtol=0.05)
+
+
+def test_a_camera_known_exactly_leaves_the_state():
+    """``--sigma-observer 0`` (a perfectly known observer): the bound's exact model has the object's
+    four states alone (before: a singular information matrix, an internal error); it equals the
+    bound with the camera's noise taken to nothing, and the filter and the smoother sit near it."""
+    import workbench
+    from workbench.experiments.sea import bounds as sea_bounds
+
+    res = workbench.run("sea", runs=4, sigma_observer=0.0)
+    e = res.metrics["estimators"]
+    assert 0.7 < e["ekf"]["position_efficiency"] < 1.3 and 0.7 < e["gtsam"]["position_efficiency"] < 1.6
+    d = res.data
+    truth = sea_bounds.Truth(d.target, d.observer, d.seen, d.disturbed)
+    exact = sea_bounds.Bounds(sea_bounds.Model(d.dt, d.height, d.sigma_acc, d.sigma_alpha, d.sigma_beta, 0.0, 10.0),
+                              [truth])
+    tiny = sea_bounds.Bounds(sea_bounds.Model(d.dt, d.height, d.sigma_acc, d.sigma_alpha, d.sigma_beta, 1e-4, 10.0),
+                             [truth])
+    assert exact.F.shape == (4, 4) and tiny.F.shape == (6, 6)
+    for delay in (0.0, float("inf")):
+        a, b = exact.variances(delay), tiny.variances(delay)
+        for q in ("position", "alpha", "range"):
+            assert np.allclose(a[q], b[q], rtol=1e-3), (delay, q)

@@ -73,9 +73,18 @@ class Truth:
 
 def information(truth: Truth, m: Model) -> np.ndarray:
     """The run's measurement information ``H' R^-1 H`` per step ``(T, 6, 6)`` at the truth: the
-    angles (where the object is seen) and the camera's measured position."""
+    angles (where the object is seen) and the camera's measured position; ``(T, 4, 4)``, the
+    object's alone, where the camera is known exactly (``sigma_observer`` 0: its exact model)."""
     T = len(truth.target)
     J = geometry.angle_jacobian(truth.target[:, :2], truth.observer, m.height)
+    if m.sigma_observer == 0.0:  # the camera known exactly: it leaves the state, the angles alone inform
+        H = np.zeros((T, 2, 4))
+        H[:, :, :2] = J
+        R = np.zeros((T, 2, 2))
+        R[:, 0, 0] = m.sigma_alpha**2 + truth.disturbed * m.impulse_sigma**2
+        R[:, 1, 1] = m.sigma_beta**2 + truth.disturbed * m.impulse_sigma**2
+        H[~truth.seen] = 0.0
+        return bounds.measurement_information(H, R)
     H = np.zeros((T, 4, 6))
     H[:, :2, :2], H[:, :2, 4:] = J, -J
     H[:, 2:, 4:] = np.eye(2)
@@ -119,11 +128,12 @@ class Bounds:
 
     def __post_init__(self) -> None:
         m = self.model
-        self.F, self.Q = np.eye(6), np.zeros((6, 6))
+        n = 4 if m.sigma_observer == 0.0 else 6  # (a camera known exactly is not in the state)
+        self.F, self.Q = np.eye(n), np.zeros((n, n))
         self.F[:4, :4] = kalman.cv_transition(m.dt)
         self.Q[:4, :4] = kalman.cv_noise_discrete(m.dt, m.sigma_acc)
         self.info = np.mean([information(t, m) for t in self.truths], axis=0)
-        P0 = np.diag([DIFFUSE**2, DIFFUSE**2, m.prior_speed**2, m.prior_speed**2, DIFFUSE**2, DIFFUSE**2])
+        P0 = np.diag([DIFFUSE**2, DIFFUSE**2, m.prior_speed**2, m.prior_speed**2, DIFFUSE**2, DIFFUSE**2][:n])
         self.filtered = bounds.filtering(P0, self.F, self.Q, self.info)
 
     def covariance(self, delay: float) -> np.ndarray:
@@ -160,11 +170,11 @@ class Bounds:
         if quantity == "range":
             u = e / np.linalg.norm(e, axis=1, keepdims=True)
             g[:, :2], g[:, 4:] = u, -u
-            return g
+            return g[:, :len(self.F)]
         row = 0 if quantity == "alpha" else 1
         J = geometry.angle_jacobian(truth.target[:, :2], truth.observer, self.model.height)[:, row]
         g[:, :2], g[:, 4:] = J, -J
-        return g
+        return g[:, :len(self.F)]
 
 
 def _quadratic(A: np.ndarray, g: np.ndarray) -> np.ndarray:
