@@ -144,7 +144,11 @@ def run(experiment: str | Experiment, scenario: str | None = None, *, config: An
     if live is not None:
         exp.record_runs(live, first, summaries, table)
         live.send_blueprint(exp.blueprint(first, summaries, stats), make_active=True, make_default=True)
-        live.flush()
+        try:
+            live.flush(timeout_sec=stream.LIVE_FLUSH)
+        except RuntimeError as exc:  # the viewer went away (or never answered): the run and its file go on
+            warnings.warn(f"the live viewer: {str(exc).splitlines()[0]}; the recording is written all the same",
+                          stream.LiveWarning, stacklevel=2)
     if out_path is not None:
         with stream.recording(out_path, exp.name, cfg.to_json(), cfg.seed, exp.blueprint(first, summaries, stats),
                               metrics=stats, force=force) as rec:

@@ -144,6 +144,10 @@ VIEWER_PORT = 9876
 """Where a spawned viewer listens, and a served stream (the SDK's default)."""
 
 
+LIVE_FLUSH = 10.0
+"""The longest wait (s) for a live viewer to take the end of a run."""
+
+
 class LiveWarning(UserWarning):
     """The live viewer could not be reached; the run goes on (the command line prints one line)."""
 
@@ -181,11 +185,18 @@ def spawn_viewer(port: int) -> str | None:
     """A native viewer listening on ``port``: the one already there, or a new one (detached, its
     output to /dev/null); why not, or ``None``. A viewer that cannot open a window (no display)
     binds the port and exits a moment later: it must still be there after that moment."""
+    import os
     import shutil
     import time
 
     if _listening(port, 0.0):
         return None
+    if sys.platform.startswith("linux") and not any(os.environ.get(v) for v in ("DISPLAY", "WAYLAND_DISPLAY",
+                                                                             "WAYLAND_SOCKET")):
+        # a native viewer binds the port, then fails to open its window: how soon depends on the
+        # machine's load (0.25 s idle, over 1.5 s under a test suite), and a stream connected to it
+        # in between waits for it for ever; without a display there is nothing to wait for
+        return "no display (DISPLAY and WAYLAND_DISPLAY are unset)"
     exe = shutil.which("rerun") or str(Path(sys.executable).with_name("rerun"))
     if not Path(exe).is_file():
         return "no Rerun viewer executable found"
