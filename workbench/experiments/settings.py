@@ -86,6 +86,17 @@ def assumed(data: Any, cfg: Any, table: Mapping[str, tuple[str, Callable[[float]
     return dataclasses.replace(data, **changes) if changes else data
 
 
+def check_assumed(cfg: Any, flags: Mapping[str, str]) -> None:
+    """Each ``assume_*`` field (``flags``: field -> its option) None or a positive finite number;
+    a one-line error naming the option otherwise."""
+    import math
+
+    for name, flag in flags.items():
+        value = getattr(cfg, name)
+        if value is not None and not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+            raise WorkbenchError(f"{flag} must be a positive number (what the estimators assume), got {value}")
+
+
 def config_json(cfg: Any) -> dict:
     """A config as JSON-ready values: every field, paths as text, tuples as lists (the one
     converter: recordings, metrics and sweeps store what it gives)."""

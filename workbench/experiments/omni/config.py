@@ -13,7 +13,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from workbench.errors import require
-from workbench.experiments.settings import Config, Option, Scenario, apply_scenario, by_scenario
+from workbench.experiments.settings import Config, Option, Scenario, apply_scenario, by_scenario, check_assumed
 
 IMAGE_SIGMA_BEARING_DEG = 0.3
 
@@ -156,11 +156,9 @@ class OmniConfig(Config):
             require(math.isfinite(value) and value >= 0.0,
                     f"--{name.replace('_', '-')} must be a non-negative number (got {value})")
         require(self.sigma_bearing_deg > 0.0, "--sigma-bearing must be positive (bearings need a noise model)")
-        for name in ("assume_sigma_v", "assume_sigma_gamma_deg", "assume_sigma_w_deg", "assume_sigma_bearing_deg"):
-            value = getattr(self, name)
-            flag = "--" + name.replace("_deg", "").replace("_", "-")
-            require(value is None or (isinstance(value, (int, float)) and math.isfinite(value) and value > 0.0),
-                    f"{flag} must be a positive number (what the estimators assume), got {value}")
+        check_assumed(self, {"assume_sigma_v": "--assume-sigma-v", "assume_sigma_gamma_deg": "--assume-sigma-gamma",
+                             "assume_sigma_w_deg": "--assume-sigma-w",
+                             "assume_sigma_bearing_deg": "--assume-sigma-bearing"})
         for name in ("room", "speed", "duration", "dt", "wheelbase", "bearing_rate", "max_range",
                      "drop_after", "keyframe_every"):
             value = getattr(self, name)

@@ -49,7 +49,8 @@ def pose_errors(truth: np.ndarray, pose: np.ndarray) -> np.ndarray:
 
 
 def pose_nees(err: np.ndarray, cov: np.ndarray) -> np.ndarray:
-    """NEES of the pose (3 dof) per row; NaN where either is unknown or the covariance singular."""
+    """NEES of the pose (3 dof; any dimension the rows have, a position's 2) per row; NaN where
+    either is unknown or the covariance singular."""
     out = np.full(len(err), np.nan)
     ok = np.isfinite(err).all(axis=1) & np.isfinite(cov).all(axis=(1, 2))
     if ok.any():
@@ -76,10 +77,10 @@ def bounds(data: OmniData, cfg: OmniConfig, keyframes: graph.Keyframes | None = 
         return {}
     if not np.isfinite(data.landmarks[np.unique(data.meas_lm)]).all():
         return {}
-    told = any(getattr(cfg, f"assume_{q}", None) is not None for q in ("sigma_v", "sigma_gamma_deg", "sigma_w_deg",
-                                                                         "sigma_bearing_deg"))
+    from workbench.experiments.omni.run import assumes
+
     # (the estimators' keyframes carry the noise they were told; the bound is the data's own)
-    kf = keyframes if keyframes is not None and not told else graph.keyframes(data, cfg)
+    kf = keyframes if keyframes is not None and not assumes(cfg) else graph.keyframes(data, cfg)
     return omni_bounds.variances(data, kf, {0.0, float("inf")})
 
 

@@ -12,7 +12,6 @@ import math
 import numpy as np
 
 from workbench.estimation import consistency
-from workbench.estimation import metrics as em
 from workbench.estimation.alignment import umeyama
 from workbench.estimation.angles import wrap
 from workbench.experiments import truthfree
@@ -128,9 +127,8 @@ def bearing_residual(data: OmniData, est: SlamEstimate) -> Values | None:
     lm = est.final_map
     if est.pose is None or lm is None or not np.isfinite(lm).any() or len(data.meas_step) == 0:
         return None
-    pose = est.smoothed if est.smoothed is not None and len(est.smoothed) == len(est.steps) else est.pose
-    where = np.clip(np.searchsorted(est.steps, data.meas_step), 0, len(est.steps) - 1)
-    p = np.where((est.steps[where] == data.meas_step)[:, None], pose[where], np.nan)
+    smoothed = est.smoothed is not None and len(est.smoothed) == len(est.steps)
+    p = evaluate.smoothed_on_grid(est, data.meas_step) if smoothed else evaluate.on_grid(est, data.meas_step)[0]
     m = lm[data.meas_lm] if len(lm) else np.full((len(data.meas_step), 2), np.nan)
     predicted = np.arctan2(m[:, 1] - p[:, 1], m[:, 0] - p[:, 0]) - p[:, 2]
     r2 = (wrap(data.meas_bearing - predicted) / data.bearing_sigma()) ** 2
@@ -152,12 +150,7 @@ def fix_nees(data: OmniData, est: SlamEstimate, ctx: MetricContext) -> Values | 
     cov = _pose(data, est, ctx)[1][:, :2, :2].copy()
     if sigma is not None:
         cov += np.nan_to_num(np.asarray(sigma, float)[data.grid])[:, None, None] ** 2 * np.eye(2)
-    ok = np.isfinite(e).all(axis=1) & np.isfinite(cov).all(axis=(1, 2))
-    out = np.full(len(e), np.nan)
-    if ok.any():
-        good = np.flatnonzero(ok)[np.linalg.det(cov[ok]) > 0]
-        out[good] = em.nees(e[good], cov[good])
-    return Values(out, _t(data))
+    return Values(evaluate.pose_nees(e, cov), _t(data))
 
 
 def disagreement(data: OmniData, est: SlamEstimate, ctx: MetricContext) -> Values | None:

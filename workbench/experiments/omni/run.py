@@ -8,10 +8,13 @@ stage's associated bearings. Its ``grid`` (the bearing epochs, plus one step at 
 
 from __future__ import annotations
 
+import dataclasses
+import math
 from dataclasses import dataclass
 
 import numpy as np
 
+from workbench.errors import require
 from workbench.experiments import contract
 from workbench.experiments.estimator import Estimator
 from workbench.experiments.omni.config import OmniConfig
@@ -34,32 +37,33 @@ class RunResult(contract.RunResult):
         return self.products.get("keyframes")
 
 
+ASSUMED = {"assume_sigma_v": ("--assume-sigma-v", ("bicycle", "unicycle"), 0, float),
+           "assume_sigma_gamma_deg": ("--assume-sigma-gamma", ("bicycle",), 1, math.radians),
+           "assume_sigma_w_deg": ("--assume-sigma-w", ("unicycle",), 1, math.radians)}
+"""What the estimators may be told of the odometry's noise: config field -> its flag, the motion
+models that have it, its control's index and the unit's conversion (the bearings' is apart)."""
+
+
+def assumes(cfg: OmniConfig) -> bool:
+    """Whether the estimators are told another noise than the data's (their products, the graph's
+    keyframes, then carry it: what is the data's own, the bounds, is made apart)."""
+    return any(getattr(cfg, f) is not None for f in (*ASSUMED, "assume_sigma_bearing_deg"))
+
+
 def assumed(data: OmniData, cfg: OmniConfig) -> OmniData:
     """The dataset as the estimators see it (:meth:`.contract.Experiment.assumed`): the odometry's
     speed and steering (bicycle) or yaw-rate (unicycle) noise and the bearings' (each bearing's,
     where a log gave its own) where the config sets what they assume (``--assume-sigma-*``), the
     data's own elsewhere. A one-line error for a setting the data's motion model has not."""
-    import dataclasses
-    import math
-
-    from workbench.errors import require
-
-    motion, changes = data.motion, {}
-    turn = {"bicycle": ("assume_sigma_gamma_deg", "--assume-sigma-gamma"),
-            "unicycle": ("assume_sigma_w_deg", "--assume-sigma-w")}
-    for name, flag in (("assume_sigma_gamma_deg", "--assume-sigma-gamma"), ("assume_sigma_w_deg", "--assume-sigma-w"),
-                       ("assume_sigma_v", "--assume-sigma-v")):
-        if getattr(cfg, name) is not None:
-            ok = name == "assume_sigma_v" and motion.model in turn or turn.get(motion.model, ("",))[0] == name
-            require(ok, f"{flag}: this data's odometry is {motion.model}, which has no such noise")
-    sigma_u = list(motion.sigma_u)
-    if cfg.assume_sigma_v is not None:
-        sigma_u[0] = float(cfg.assume_sigma_v)
-    turning = getattr(cfg, turn[motion.model][0]) if motion.model in turn else None
-    if turning is not None:
-        sigma_u[1] = math.radians(turning)
-    if tuple(sigma_u) != tuple(motion.sigma_u):
-        changes["motion"] = dataclasses.replace(motion, sigma_u=tuple(sigma_u))
+    sigma_u, changes = list(data.motion.sigma_u), {}
+    for name, (flag, models, index, convert) in ASSUMED.items():
+        value = getattr(cfg, name)
+        if value is not None:
+            require(data.motion.model in models, f"{flag}: this data's odometry is {data.motion.model}, which has "
+                                                 "no such noise")
+            sigma_u[index] = convert(value)
+    if tuple(sigma_u) != tuple(data.motion.sigma_u):
+        changes["motion"] = dataclasses.replace(data.motion, sigma_u=tuple(sigma_u))
     if cfg.assume_sigma_bearing_deg is not None:
         changes.update(sigma_bearing=math.radians(cfg.assume_sigma_bearing_deg), meas_sigma=None)
     return dataclasses.replace(data, **changes) if changes else data

@@ -2,12 +2,11 @@
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from pathlib import Path
 
 from workbench.errors import require
-from workbench.experiments.settings import Config, Option, Scenario, apply_scenario, by_scenario
+from workbench.experiments.settings import Config, Option, Scenario, apply_scenario, by_scenario, check_assumed
 
 SCENARIOS: dict[str, Scenario] = {s.name: s for s in (
     Scenario("paper", "the spec's reading of Table 1: a 3 m mast, 72 s, the target at 0.1 m/s^2"),
@@ -112,11 +111,10 @@ class SeaConfig(Config):
             require(value >= 0, f"noise --{_flag(name)} must not be negative, got {value}")
         require(self.sigma_alpha_arcmin > 0 and self.sigma_beta_arcmin > 0,
                 "angle noises must be positive: the estimators weight by them")
-        for name, flag in (("assume_sigma_alpha_arcmin", "alpha"), ("assume_sigma_beta_arcmin", "beta"),
-                           ("assume_sigma_observer", "observer"), ("assume_sigma_acc", "acc")):
-            value = getattr(self, name)
-            require(value is None or (isinstance(value, (int, float)) and math.isfinite(value) and value > 0),
-                    f"--assume-sigma-{flag} must be a positive number (what the estimators assume), got {value}")
+        check_assumed(self, {"assume_sigma_alpha_arcmin": "--assume-sigma-alpha",
+                             "assume_sigma_beta_arcmin": "--assume-sigma-beta",
+                             "assume_sigma_observer": "--assume-sigma-observer",
+                             "assume_sigma_acc": "--assume-sigma-acc"})
         require(0.0 < self.lam <= 1.0, f"--lam must be in (0, 1], got {self.lam}")
         require(self.order_alpha >= 1 and self.order_beta >= 1, "AR orders must be at least 1")
         params = max(self.order_alpha, self.order_beta) + int(self.intercept)
