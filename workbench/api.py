@@ -57,10 +57,14 @@ class Result:
         return self.first.estimates
 
 
-def configure(experiment: str | Experiment, scenario: str | None = None, **overrides: Any) -> Any:
-    """The config ``run`` would use (validated), for a look before running."""
+def configure(experiment: str | Experiment, scenario: str | None = None, config: Any = None,
+              **overrides: Any) -> Any:
+    """The config ``run`` would use (validated), for a look before running; ``config`` as for
+    :func:`run`."""
     exp = get(experiment) if isinstance(experiment, str) else experiment
-    return exp.validate(exp.configure(scenario, **overrides))
+    if config is not None and dataclasses.is_dataclass(config):
+        return exp.validate(dataclasses.replace(config, **{k: v for k, v in overrides.items() if v is not None}))
+    return exp.validate(exp.configure(scenario, config, **overrides))
 
 
 def run(experiment: str | Experiment, scenario: str | None = None, *, config: Any = None,
@@ -72,7 +76,9 @@ def run(experiment: str | Experiment, scenario: str | None = None, *, config: An
     """Run an experiment: ``runs`` Monte Carlo runs (``seed``, ``runs`` and every other config
     field as keyword overrides), every selected estimator on each run's data.
 
-    ``config``: a ready config instead of ``scenario`` (the overrides then replace its fields).
+    ``config``: a ready config instead of ``scenario`` (the overrides then replace its fields), or
+    a config file's path (TOML or JSON: ``--config``) or a mapping of settings, which go between the
+    scenario's defaults and the overrides (:mod:`workbench.experiments.configfile`).
     ``estimators``: names, ``+name`` (the defaults and), ``module:function`` / ``file.py:function``
     specs, or functions ``(data, cfg) -> Estimate``. ``out``: write run 0's recording there
     (``.rrd``); ``metrics``: the metrics JSON; neither overwrites without ``force``.
@@ -90,10 +96,10 @@ def run(experiment: str | Experiment, scenario: str | None = None, *, config: An
     extras = dict(extras or {})
     if export_data is not None:
         extras["export_data"] = export_data
-    if config is not None:
+    if config is not None and dataclasses.is_dataclass(config):
         cfg = dataclasses.replace(config, **{k: v for k, v in overrides.items() if v is not None})
     else:
-        cfg = exp.configure(scenario, **overrides)
+        cfg = exp.configure(scenario, config, **overrides)
     chosen = exp.select(estimators if estimators is not None else (cfg.estimators or None))
     cfg.estimators = tuple(e.spec for e in chosen)
     added = cfg.add_metrics

@@ -31,7 +31,7 @@ def _progress():
 
 def execute(exp, scenario: str | None, out: Path | None, force: bool, metrics: Path | None, spawn: bool = False,
             serve: bool = False, jobs: int | None = None, estimators: str | None = None, quiet: bool = False,
-            extras: dict | None = None, connect: str | None = None, **overrides):
+            extras: dict | None = None, connect: str | None = None, config: Path | None = None, **overrides):
     """What every experiment command does, through the API; prints the table and the outputs.
     Exits with :data:`FAILED` (after writing everything) if an estimator or a metric failed."""
     from workbench import api
@@ -46,6 +46,7 @@ def execute(exp, scenario: str | None, out: Path | None, force: bool, metrics: P
         warnings.simplefilter("always", DataWarning)
         res = api.run(exp, scenario, estimators=estimators, out=out or RECORDINGS / f"{exp.name}.rrd",
                       metrics=metrics, force=force, jobs=jobs, spawn=spawn, serve=serve, connect=connect,
+                      config=config,
                       extras=extras, progress=lambda done, total: bar.update(task, completed=done, total=total),
                       **overrides)
     said = dict.fromkeys(str(w.message) for w in caught if issubclass(w.category, (LiveWarning, DataWarning)))
@@ -98,6 +99,8 @@ def _shared(exp) -> list[inspect.Parameter]:
     """The options every experiment command has, declared once."""
     builtin = ", ".join(exp.estimators)
     rows = [("scenario", str, f"{' | '.join(exp.scenarios)} [{next(iter(exp.scenarios))}]"),
+            ("config", str, "A TOML or JSON file of settings (the options' names; a recording's stored config "
+                             "as `workbench info REC --config` prints it): beneath the options given here."),
             ("seed", int, "Seed of every random draw [0]."),
             ("runs", int, "Monte Carlo runs (run 0 is recorded in full) [1]."),
             ("out", Path, f"Recording path [recordings/{exp.name}.rrd]."),
@@ -123,7 +126,7 @@ def command(exp, friendly: Callable[[Callable], Callable]) -> Callable:
 
     def run(**given):
         shared = {k: given.pop(k) for k in ("scenario", "out", "force", "metrics", "spawn", "serve", "jobs",
-                                            "estimators", "connect")}
+                                            "estimators", "connect", "config")}
         extras = {opt.field: opt.value(given.pop(opt.field)) for opt in exp.extras}
         if "export_data" in given:
             extras["export_data"] = given.pop("export_data")

@@ -194,16 +194,25 @@ class Experiment:
         return tuple(self.estimators)
 
     # --- configure
-    def configure(self, scenario: str | None = None, **overrides: Any) -> Any:
-        """The config of ``scenario`` (default: the first) with ``overrides`` on top; ``None``
-        means "not given" (the scenario's default). Unknown names are a one-line error."""
+    def configure(self, scenario: str | None = None, config: Any = None, **overrides: Any) -> Any:
+        """The config of ``scenario`` with ``overrides`` on top; ``None`` means "not given" (the
+        scenario's default). ``config``: a config file's path (TOML or JSON,
+        :mod:`.configfile`) or a mapping of settings, between the scenario's defaults and the
+        overrides; its ``scenario`` is used where ``scenario`` is not given (else the first).
+        Unknown names are a one-line error."""
+        from workbench.experiments import configfile
+
         names = {f.name for f in dataclasses.fields(self.config_type)}
         unknown = sorted(set(overrides) - names)
         if unknown:
             raise WorkbenchError(f"{self.name} has no setting {', '.join(unknown)}; "
                                  f"see `workbench {self.name} --help`")
-        given = {k: v for k, v in overrides.items() if v is not None}
-        return self.config_type(scenario=scenario or next(iter(self.scenarios)), **given)
+        given = configfile.loads(self, config)
+        from_file = given.pop("scenario", None)
+        given.update({k: v for k, v in overrides.items() if v is not None})
+        if scenario is not None and not str(scenario).strip():
+            raise WorkbenchError(f"--scenario needs a name; choose one of {', '.join(self.scenarios)}")
+        return self.config_type(scenario=scenario or from_file or next(iter(self.scenarios)), **given)
 
     def validate(self, cfg: Any) -> Any:
         """``cfg.validate()`` (the experiment's own ranges), then the checks every experiment

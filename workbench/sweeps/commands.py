@@ -20,8 +20,10 @@ def sweep(
     list_presets: bool = typer.Option(False, "--list-presets", help="Name the experiment's presets and stop."),
     fixed: list[str] = typer.Option(None, "--set", help="KEY=VALUE for every cell (repeatable)."),
     scenario: str = typer.Option(None, help="The scenario \\[the experiment's first, or the preset's]."),
-    runs: int = typer.Option(10, help="Monte Carlo runs per cell."),
-    seed: int = typer.Option(0, help="Run k of every cell draws from (seed, k)."),
+    config: str = typer.Option(None, help="A TOML or JSON file of settings for every cell (as the experiment's "
+                                          "--config), beneath the preset, --set and --grid."),
+    runs: int = typer.Option(None, help="Monte Carlo runs per cell \\[the config file's, or 10]."),
+    seed: int = typer.Option(None, help="Run k of every cell draws from (seed, k) \\[the config file's, or 0]."),
     estimators: str = typer.Option(None, help="As for the experiment's command \\[its defaults, or the preset's]."),
     out: str = typer.Option(None, help="The sweep folder \\[sweeps/<experiment>]."),
     force: bool = typer.Option(False, help="Start the sweep in --out again, deleting its results."),
@@ -44,17 +46,29 @@ def sweep(
             keys = " x ".join(f"{k} ({len(v)})" for k, v in p.grid.items())
             typer.echo(f"{p.name:16s} {p.description}: {keys}")
         return
-    spec, overrides, chosen = {}, {}, estimators
+    from workbench.experiments import configfile
+
+    overrides = configfile.loads(exp, config) if config is not None else {}
+    scenario = scenario or overrides.pop("scenario", None)
+    runs = runs if runs is not None else overrides.pop("runs", 10)
+    seed = seed if seed is not None else overrides.pop("seed", 0)
+    listed = overrides.pop("estimators", ())
+    spec, chosen = {}, estimators or (",".join(listed) if listed else None)
+    for name in grids.FIXED:
+        overrides.pop(name, None)
     if preset is not None:
         found = {p.name: p for p in exp.presets}
         if preset not in found:
             raise WorkbenchError(f"{exp.name} has no preset {preset!r}; its presets: {', '.join(found) or 'none'}")
         p = found[preset]
         spec = {k: tuple(v) for k, v in p.grid.items()}
-        overrides = dict(p.overrides)
+        overrides.update(p.overrides)
         scenario = scenario or p.scenario
         chosen = chosen or p.estimators
     spec.update(grids.parse(exp, grid or []))
+    for name in spec:  # the grid sets these in every cell: the file's or the preset's value is not fixed
+        for f in grids.expand(exp, {name: None}):
+            overrides.pop(f, None)
     for item in fixed or []:
         key, eq, value = item.partition("=")
         if not eq:

@@ -16,12 +16,21 @@ from workbench.errors import WorkbenchError
 DIFFERS = 1  # replay: the numbers do not reproduce
 
 
-def info(file: Path = typer.Argument(..., help="A .rrd recording.")) -> None:
+def info(file: Path = typer.Argument(..., help="A .rrd recording."),
+         config: bool = typer.Option(False, "--config", help="Print only the stored config, as JSON that "
+                                                             "`--config FILE` takes (edit it, run it).")) -> None:
     """What made a recording: its command, config, version, commit, seed and date, its
     estimators and its results table."""
+    import json
+
     from workbench.tools import provenance
 
     stored = provenance.read(file) if not _is_comparison(file) else None
+    if config:
+        if stored is None:
+            raise WorkbenchError(f"{file} is a comparison of recordings: it has no config of its own")
+        typer.echo(json.dumps(stored.config, indent=2, sort_keys=False))
+        return
     typer.echo(provenance.describe(stored) if stored else provenance.describe_comparison(file, _is_comparison(file)))
 
 
