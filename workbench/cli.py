@@ -28,6 +28,7 @@ from workbench.commands import RECORDINGS, execute
 from workbench.errors import DataNotFound, WorkbenchError
 from workbench.sweeps import commands as sweep_commands
 from workbench.tools import commands as tool_commands
+from workbench.tuning import commands as tune_commands
 
 app = typer.Typer(no_args_is_help=True, add_completion=False,
                   help="Estimation workbench: paper estimators against GTSAM, recorded to Rerun.")
@@ -110,6 +111,7 @@ for _exp in experiments.all_experiments():
         app.command(_cmd.name)(friendly(loading.load(_cmd.cli, "command")))
 app.command("sweep")(friendly(sweep_commands.sweep))
 app.command("sweep-report")(friendly(sweep_commands.sweep_report))
+app.command("tune")(friendly(tune_commands.tune))
 for _name in ("info", "replay", "screenshot", "compare", "view"):
     app.command(_name)(friendly(getattr(tool_commands, _name)))
 

@@ -55,15 +55,12 @@ def settings(exp: Any, table: Mapping[str, Any], source: str = "--config") -> di
     """``table``'s values as config fields of ``exp``, each checked against its field's type.
     ``None`` (JSON ``null``) is left out: the scenario's default applies."""
     hints = typing.get_type_hints(exp.config_type)
-    options = {name.lstrip("-"): opt for opt in exp.options for flag in opt.flags for name in flag.split("/")}
-    by_field = {opt.field: opt for opt in exp.options}
     out: dict[str, Any] = {}
     for key, value in table.items():
         where = f"{source}: {key}"
         if isinstance(value, dict):
             raise WorkbenchError(f"{where}: a table; a config file is flat (key = value)")
-        name = key if key in hints else key.replace("-", "_") if key.replace("-", "_") in hints else None
-        opt = by_field.get(name) if name else options.get(key)
+        name, opt = resolve(exp, key)
         if name is None and opt is None:
             raise WorkbenchError(f"{where}: {exp.name} has no such setting; see `workbench {exp.name} --help`")
         if value is None:
@@ -77,6 +74,30 @@ def settings(exp: Any, table: Mapping[str, Any], source: str = "--config") -> di
                 raise WorkbenchError(f"{where}: {f} is set twice in the file")
             out[f] = parsed
     return out
+
+
+def resolve(exp: Any, key: str) -> tuple[str | None, Any]:
+    """A setting's config field from its key (the field's name, or its option's without the
+    dashes), and the option that sets it (None where none does); ``(None, opt)`` for an option
+    of several fields (sea's ``order``), ``(None, None)`` for no such setting."""
+    hints = typing.get_type_hints(exp.config_type)
+    key = str(key).strip()
+    name = key if key in hints else key.replace("-", "_") if key.replace("-", "_") in hints else None
+    if name is not None:
+        return name, next((opt for opt in exp.options if opt.field == name), None)
+    options = {n.lstrip("-"): opt for opt in exp.options for flag in opt.flags for n in flag.split("/")}
+    opt = options.get(key)
+    if opt is not None and len(opt.fields) == 1:
+        return opt.fields[0], opt
+    return None, opt
+
+
+def field_type(exp: Any, name: str) -> Any:
+    """A config field's type (its annotation, ``None`` removed from a union)."""
+    hint = typing.get_type_hints(exp.config_type)[name]
+    kinds = [k for k in typing.get_args(hint) if k is not type(None)] if isinstance(hint, types.UnionType) \
+        or typing.get_origin(hint) is typing.Union else [hint]
+    return kinds[0] if len(kinds) == 1 else hint
 
 
 def _typed(hint: Any, value: Any, where: str) -> Any:

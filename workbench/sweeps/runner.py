@@ -140,42 +140,46 @@ def _manifest(experiment: str, scenario: str | None, grid: Mapping[str, tuple], 
                                  default=str))
 
 
-def prepare(out: Path, manifest: dict, resume: bool, force: bool) -> Path:
-    """The sweep folder, checked: a new one; or, with ``resume``, the same sweep's; or, with
-    ``force``, the same folder emptied of a sweep's files. Anything else is a one-line error."""
+def prepare(out: Path, manifest: dict, resume: bool, force: bool, what: str = "sweep", name: str = MANIFEST,
+            sub: str = TASKS, kinds: tuple[str, ...] = ("*.png", "*.md", "*.csv", "*.rrd"),
+            loose: tuple[str, ...] = ("preset",)) -> Path:
+    """The sweep folder (or a tuning study's: ``what``, its manifest ``name``, results folder
+    ``sub``, the kinds of file it writes), checked: a new one; or, with ``resume``, the same
+    sweep's (its manifest equal but for the keys ``loose``); or, with ``force``, the same folder
+    emptied of a sweep's files. Anything else is a one-line error, and nothing is touched."""
     out = Path(out).expanduser()
     if resume and force:
         raise WorkbenchError("give --resume or --force, not both")
     if out.exists() and not out.is_dir():
-        raise WorkbenchError(f"{out} is a file, not a sweep folder")
-    existing = out / MANIFEST
+        raise WorkbenchError(f"{out} is a file, not a {what} folder")
+    existing = out / name
     if out.is_dir() and any(out.iterdir()):
         if not existing.is_file():
-            raise WorkbenchError(f"{out} exists and holds no sweep; choose another --out")
+            raise WorkbenchError(f"{out} exists and holds no {what}; choose another --out")
         if resume:
             before = json.loads(existing.read_text())
-            keys = [k for k in manifest if k != "preset" and before.get(k) != manifest[k]]
+            keys = [k for k in manifest if k not in loose and before.get(k) != manifest[k]]
             if keys:
-                raise WorkbenchError(f"{out} holds another sweep (its {', '.join(keys)} differ); "
+                raise WorkbenchError(f"{out} holds another {what} (its {', '.join(keys)} differ); "
                                      "resume it with its own settings, or --force a new one")
         elif force:  # a sweep folder: the kinds of file a sweep writes go
-            shutil.rmtree(out / TASKS, ignore_errors=True)
-            for kind in ("*.png", "*.md", "*.csv", "*.rrd", MANIFEST):
+            shutil.rmtree(out / sub, ignore_errors=True)
+            for kind in (*kinds, name):
                 for path in out.glob(kind):
                     path.unlink()
         else:
-            raise WorkbenchError(f"{out} holds a sweep; pass --resume to finish it or --force to start again")
+            raise WorkbenchError(f"{out} holds a {what}; pass --resume to finish it or --force to start again")
     elif resume:
         raise WorkbenchError(f"nothing to resume in {out}")
     try:
-        (out / TASKS).mkdir(parents=True, exist_ok=True)
+        (out / sub).mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise WorkbenchError(f"cannot create {out}: {exc.strerror}") from None
     if not os.access(out, os.W_OK):
         raise WorkbenchError(f"cannot write to {out}")
     from workbench.recording.stream import write_text_atomic
 
-    write_text_atomic(out / MANIFEST, json.dumps(manifest, indent=2))
+    write_text_atomic(out / name, json.dumps(manifest, indent=2))
     return out
 
 
