@@ -83,8 +83,9 @@ def markdown(manifest: dict, objective: Any, done: list, best: Any, se: float,
              f"Objective: {manifest['objective']}, {objective.describe}; minimised over {len(done)} finished "
              f"trial(s) of {manifest['runs']} run(s) each (seed {manifest['seed']}; every trial the same runs).", "",
              f"**Best: trial {best.number}, objective {best.value:.6g}** (Monte Carlo standard error over its runs "
-             f"{se:.3g}; trials share their runs, so their differences are far more precise than that).", "",
-             "| setting | range | best | the data's own |", "|---|---|---|---|"]
+             + (f"{se:.3g}" if math.isfinite(se) else "n/a with one run")
+             + "; trials share their runs, so their differences are far more precise than that).", "",
+             "| setting | range | best | the config's (on a simulation: what made the data) |", "|---|---|---|---|"]
     for name, value in best.params.items():
         p = space[name]
         own = getattr(base, name.removeprefix("assume_"), None) if name.startswith("assume_") else None

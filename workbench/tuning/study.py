@@ -136,12 +136,15 @@ def tune(experiment: str, params: list[spaces.Param], objective_name: str = "lik
         raise WorkbenchError(f"--seed must not be negative (got {seed})")
     base = exp.validate(exp.configure(scenario, seed=seed, runs=runs, **fixed))
     scenario = base.scenario
+    from workbench.experiments.estimator import one
+
     chosen = exp.select(list(estimators) if estimators else (list(base.estimators) or None))
-    name = estimator or default_estimator(exp, chosen)
+    name = one(exp, estimator).name if estimator else default_estimator(exp, chosen)  # a spec: its estimator's name
     if name not in {e.name for e in chosen}:
-        if estimators:
-            raise WorkbenchError(f"--estimator {name} is not among --estimators ({', '.join(e.name for e in chosen)})")
-        chosen = exp.select([name])
+        if estimators or base.estimators:
+            raise WorkbenchError(f"--estimator {name} is not among the estimators run "
+                                 f"({', '.join(e.name for e in chosen)})")
+        chosen = exp.select([estimator])
     if any(e.ref is None for e in chosen):
         raise WorkbenchError("a study's estimators must be names or module:function / file.py:function specs")
     refs = tuple(e.spec for e in chosen)
