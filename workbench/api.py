@@ -113,6 +113,12 @@ def run(experiment: str | Experiment, scenario: str | None = None, *, config: An
         raise WorkbenchError(f"--metrics and --out name the same file ({out_path}): one would replace the other")
     extras["recording"] = out_path  # exports that sit beside the recording (terrain's model folder)
     exp.check_extras(cfg, extras, force)
+    tuned = None
+    if cfg.tune_noise:  # the noise the data identify, told to every estimator; the stored config then runs as is
+        from workbench.tuning import selftune
+
+        cfg, tuned = selftune.tune_noise(exp, cfg)
+        cfg = exp.validate(dataclasses.replace(cfg, tune_noise=False))
     report = progress or (lambda done, total: None)
     t0 = time.perf_counter()
     done = [0]
@@ -145,6 +151,8 @@ def run(experiment: str | Experiment, scenario: str | None = None, *, config: An
     stats["estimator_table"] = {e.name: e.describe() for e in chosen if e.name not in gone}
     if failures:
         stats["failed"] = failures
+    if tuned is not None:
+        stats["tuned_noise"] = tuned
     stats["wall_seconds"] = time.perf_counter() - t0
     table = exp.table(stats)
     if live is not None:
@@ -161,6 +169,10 @@ def run(experiment: str | Experiment, scenario: str | None = None, *, config: An
             exp.record(rec, first, summaries, table)
         stats["recording"] = str(out_path)
     lines = exp.export(first, stats, extras, force)
+    if tuned is not None:
+        from workbench.tuning import selftune
+
+        lines = selftune.lines(tuned) + lines
     if metrics_path is not None:
         stream.write_text_atomic(metrics_path, strict_json(stats), force)
     for name, why in failures.items():

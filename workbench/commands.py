@@ -114,11 +114,16 @@ def _shared(exp) -> list[inspect.Parameter]:
                                 "module:function or file.py:function; +name adds to the defaults."),
             ("add_metrics", str, "Comma-separated metrics of your own (module:function or file.py:function), "
                                  "beside the experiment's and the installed ones.")]
+    tune = inspect.Parameter("tune_noise", inspect.Parameter.KEYWORD_ONLY, annotation=bool | None,
+                             default=typer.Option(None, "--tune-noise/--no-tune-noise", help=_escape(
+                                 "First estimate the noise the data identify, by a filter's likelihood on the "
+                                 "data (no truth used); every estimator then assumes it [off].")))
     if exp.writes_logs:
         rows.append(("export_data", str, "Write run 0's dataset into this folder in the open log format "
                                           "(docs/log-formats.md; read it back with --scenario log --data)."))
     return [inspect.Parameter(n, inspect.Parameter.KEYWORD_ONLY, annotation=t if t is bool else t | None,
-                              default=typer.Option(False if t is bool else None, help=_escape(h))) for n, t, h in rows]
+                              default=typer.Option(False if t is bool else None, help=_escape(h))) for n, t, h in rows
+            ] + [tune]
 
 
 def command(exp, friendly: Callable[[Callable], Callable]) -> Callable:
@@ -131,7 +136,7 @@ def command(exp, friendly: Callable[[Callable], Callable]) -> Callable:
         if "export_data" in given:
             extras["export_data"] = given.pop("export_data")
         added = given.pop("add_metrics")
-        overrides = {"seed": given.pop("seed"), "runs": given.pop("runs"),
+        overrides = {"seed": given.pop("seed"), "runs": given.pop("runs"), "tune_noise": given.pop("tune_noise"),
                      "add_metrics": split_list(added) if added is not None else None}
         for opt in exp.options:
             value = opt.value(given.pop(opt.field))

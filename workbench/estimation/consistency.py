@@ -95,6 +95,17 @@ class Innovations:
             out[ok] = 0.5 * (self.dimension * np.log(2.0 * np.pi) + logdet + self.nis()[ok])
         return out
 
+    def charged_nll(self) -> np.ndarray:
+        """:meth:`nll` with each measurement the filter left out (a gate) charged the term of the
+        least likely one it kept: a gated measurement is at least that improbable under the
+        filter's model. Without the charge a filter told a smaller noise gates more and its sum
+        falls for that alone, so a likelihood could be won by leaving the data out."""
+        out = self.nll()
+        kept = out[np.isfinite(out)]
+        if kept.size:
+            out[~self.used] = kept.max()
+        return out
+
 
 def autocorrelation(white: np.ndarray, lags: int) -> np.ndarray:
     """The normalised sample autocorrelation ``rho(l)``, ``l = 1..lags``, of a whitened sequence

@@ -119,13 +119,16 @@ class Config:
     subclass gives ``scenario`` its default, the first scenario's name) and :meth:`to_json`.
 
     ``estimators``: the selection (empty: the experiment's defaults); ``add_metrics``: metric
-    plugins (``module:function`` / ``file.py:function`` specs) beside the experiment's own."""
+    plugins (``module:function`` / ``file.py:function`` specs) beside the experiment's own;
+    ``tune_noise``: before the runs, the noise the data identify estimated on run 0's data by a
+    filter's likelihood (:mod:`workbench.tuning.selftune`) and told to every estimator."""
 
     scenario: str = ""
     seed: int = 0
     runs: int = 1
     estimators: tuple[str, ...] = ()
     add_metrics: tuple[str, ...] = ()
+    tune_noise: bool = False  # estimate the noise the data identify by a filter's likelihood first (tuning.selftune)
 
     def to_json(self) -> dict:
         return config_json(self)

@@ -8,7 +8,9 @@ researcher's own. None of them reads the truth: they judge an estimator on a rea
 * ``innovation_whiteness``: the share of lags 1..20 whose normalised autocorrelation of the
   whitened innovations is outside its 95 % band (about 0.05 for a consistent filter);
 * ``nll``: the measurements' negative log-likelihood under the filter (the prediction-error
-  decomposition), per run, the mean over runs; lower explains the data better;
+  decomposition), per run, the mean over runs; lower explains the data better; a measurement the
+  filter left out (a gate) is charged as its least likely kept one
+  (:meth:`~workbench.estimation.consistency.Innovations.charged_nll`), so leaving data out never wins;
 * ``left_out``: the share of the measurements handed to the filter that it left out (a gate).
 
 An experiment adds the disagreement of each causal estimator with the run's smoother
@@ -71,7 +73,7 @@ def whiteness(data, est) -> Values | None:
 
 def nll(data, est) -> Values | None:
     innov = _innovations(est)
-    return None if innov is None else Values(innov.nll(), innov.t)
+    return None if innov is None else Values(innov.charged_nll(), innov.t)
 
 
 def left_out(data, est) -> Values | None:
@@ -85,8 +87,9 @@ METRICS: tuple[Metric, ...] = (
     Metric("innovation_whiteness", whiteness, "", f"share of lags 1..{LAGS} whose innovation autocorrelation is "
            "outside its 95 % band (0.05 if white; truth-free)", reduce="mean", across="mean", at_most=WHITE_MAX,
            truth_free=True, label="NIS lags out", fmt=".2f"),
-    Metric("nll", nll, "", "the measurements' negative log-likelihood under the filter, a run's sum, mean over "
-           "runs (truth-free)", reduce="sum", across="mean", truth_free=True, label="NLL", fmt=".1f"),
+    Metric("nll", nll, "", "the measurements' negative log-likelihood under the filter (one left out charged as "
+           "its least likely kept one), a run's sum, mean over runs (truth-free)", reduce="sum", across="mean",
+           truth_free=True, label="NLL", fmt=".1f"),
     Metric("left_out", left_out, "", "share of the measurements the filter left out (truth-free)", reduce="mean",
            truth_free=True, label="left out", fmt=".3f"),
 )

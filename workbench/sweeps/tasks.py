@@ -9,6 +9,7 @@ parameter, not the noise; a cell's own settings (a noise level, a window) act on
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import json
 import os
@@ -74,6 +75,10 @@ def run_task(task: Task) -> pa.Table:
     t0 = time.perf_counter()
     exp = get(task.experiment)
     cfg = task.config()
+    if cfg.tune_noise:  # a cell that tunes its noise on its run 0's data first, as a run of the command does
+        from workbench.tuning import selftune
+
+        cfg = dataclasses.replace(selftune.tune_noise(exp, cfg)[0], tune_noise=False)
     chosen = exp.select(list(task.estimators))
     cfg.estimators = tuple(e.spec for e in chosen)
     units = exp.metric_units(cfg)

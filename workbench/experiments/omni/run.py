@@ -69,6 +69,20 @@ def assumed(data: OmniData, cfg: OmniConfig) -> OmniData:
     return dataclasses.replace(data, **changes) if changes else data
 
 
+def tunable(data: OmniData, cfg: OmniConfig) -> tuple[str, dict[str, float], dict[str, str]]:
+    """What ``--tune-noise`` tunes (:mod:`workbench.tuning.selftune`): by the EKF's likelihood of the
+    bearings, the odometry's two noises (speed and steering, or speed and yaw rate) and the
+    bearings', from the data's own values (config units); and what it leaves, with why."""
+    second = "sigma_gamma_deg" if data.motion.model == "bicycle" else "sigma_w_deg"
+    values = {"sigma_v": float(data.motion.sigma_u[0]), second: math.degrees(data.motion.sigma_u[1])}
+    left = {}
+    if data.meas_sigma is not None:
+        left["sigma_bearing_deg"] = "the log gives each bearing its own sigma: one tuned value would replace them"
+    else:
+        values["sigma_bearing_deg"] = math.degrees(data.sigma_bearing)
+    return "ekf", values, left
+
+
 def make_data(cfg: OmniConfig, run: int) -> OmniData:
     """The run's dataset, its grid set (with ``from_images``, the image stage's bearings)."""
     return with_stage(cfg, run)[0]

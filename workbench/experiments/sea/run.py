@@ -8,6 +8,7 @@ run once more on the simulated angles of the same run for comparison. Evaluation
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -133,6 +134,17 @@ def assumed(data: SeaData, cfg: SeaConfig) -> SeaData:
     the camera position's and the object's acceleration noise where the config sets what they
     assume (``--assume-sigma-*``), the data's own elsewhere."""
     return settings.assumed(data, cfg, ASSUMED)
+
+
+def tunable(data: SeaData, cfg: SeaConfig) -> tuple[str, dict[str, float], dict[str, str]]:
+    """What ``--tune-noise`` tunes (:mod:`workbench.tuning.selftune`): by the EKF's likelihood, the
+    object's acceleration noise and the two angles' noise, from the data's own values (config
+    units); and what it leaves, with why."""
+    arcmin = math.degrees(1.0) * 60.0
+    return "ekf", {"sigma_acc": float(data.sigma_acc), "sigma_alpha_arcmin": float(data.sigma_alpha) * arcmin,
+                   "sigma_beta_arcmin": float(data.sigma_beta) * arcmin}, {
+        "sigma_observer": "the camera's position noise reaches the filter only through the angles it predicts, "
+                          "where it adds to the angle noise: the likelihood cannot tell the two apart"}
 
 
 def write_log(data: SeaData, folder, force: bool = False) -> list:
