@@ -11,6 +11,11 @@ What is repaired, counted in a ``repairs`` dict and said in one
 * **repeated time stamps** (of one ship, for AIS) keep the last row of each repeat
   (``<what>_repeated_stamps``: the rows dropped).
 
+The text itself is read by :mod:`.textfile`, under every reader's: a byte-order mark, blank lines at
+the end, a ``;`` (with decimal commas) or tab separator, quoted fields are repaired with a count
+(``<what>_bom``, ``<what>_trailing_empty_lines``, ``<what>_separator_semicolon``,
+``<what>_decimal_commas``, ``<what>_quoted_fields``, ...), what is ambiguous refused in one line.
+
 What cannot be repaired stays a one-line :class:`~workbench.errors.WorkbenchError`: no header
 or no rows, a needed column missing (the message lists the header's), a bad field anywhere but
 the last line, time running back by more than ``max_backstep``.
@@ -21,7 +26,6 @@ and the local east-north frame (:func:`to_local`).
 
 from __future__ import annotations
 
-import csv
 import warnings
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -29,6 +33,7 @@ from pathlib import Path
 import numpy as np
 
 from workbench.errors import DataWarning, WorkbenchError
+from workbench.experiments import textfile
 
 EARTH_RADIUS = 6371008.8
 
@@ -75,43 +80,47 @@ def count(repairs: dict[str, int], key: str, n: int) -> None:
         repairs[key] = repairs.get(key, 0) + int(n)
 
 
+def read_table(path: Path, columns: Sequence[str], what: str, repairs: dict[str, int]) -> textfile.Table:
+    """A CSV file with a header holding ``columns``, read by :func:`.textfile.table` (a BOM, blank
+    lines at the end, a ``;`` or tab separator, decimal commas, quoted fields: repaired and counted);
+    no header, a column missing or no rows is one line."""
+    tab = textfile.table(path, what, repairs, columns=columns)
+    if not tab.header or not any(tab.header):
+        raise WorkbenchError(f"malformed {what} file {path}: no header line")
+    missing = [c for c in columns if c not in tab.header]
+    if missing:
+        raise WorkbenchError(f"malformed {what} file {path}: missing column(s) {', '.join(missing)} "
+                             f"(its columns: {', '.join(tab.header)[:120]})")
+    if not tab.rows:
+        raise WorkbenchError(f"malformed {what} file {path}: no rows after the header")
+    return tab
+
+
 def read_rows(path: Path, columns: Sequence[str], parse: Callable[[dict[str, str]], tuple],
               what: str, repairs: dict[str, int]) -> tuple[list[tuple], list[int]]:
-    """The parsed rows of a CSV file with a header, and each one's line number.
+    """The parsed rows of a CSV file with a header (:func:`read_table`), and each one's line number."""
+    return parse_rows(read_table(path, columns, what, repairs), parse, what, repairs)
 
-    ``parse(record)`` turns a row (column -> text) into a tuple, raising ``ValueError`` /
-    ``TypeError`` for a bad field. A bad last line is left out and counted as cut short; a bad
-    line elsewhere is an error naming it.
+
+def parse_rows(tab: textfile.Table, parse: Callable[[dict[str, str]], tuple], what: str,
+               repairs: dict[str, int]) -> tuple[list[tuple], list[int]]:
+    """``parse(record)`` of each row of ``tab`` (column -> text), with its line number.
+
+    ``parse`` raises ``ValueError`` / ``TypeError`` for a bad field. A bad last line is left out
+    and counted as cut short; a bad line elsewhere is an error naming it.
     """
-    try:
-        with open(path, newline="") as fh:
-            reader = csv.reader(fh)
-            header = next(reader, None)
-            if not header or not any(h.strip() for h in header):
-                raise WorkbenchError(f"malformed {what} file {path}: no header line")
-            header = [h.strip() for h in header]
-            missing = [c for c in columns if c not in header]
-            if missing:
-                raise WorkbenchError(f"malformed {what} file {path}: missing column(s) {', '.join(missing)} "
-                                     f"(its columns: {', '.join(header)[:120]})")
-            lines = [(reader.line_num, fields) for fields in reader if any(f.strip() for f in fields)]
-    except UnicodeDecodeError:
-        raise WorkbenchError(f"malformed {what} file {path}: not text") from None
-    except csv.Error as exc:
-        raise WorkbenchError(f"malformed {what} file {path}: {exc}") from None
-    if not lines:
-        raise WorkbenchError(f"malformed {what} file {path}: no rows after the header")
+    path, header = tab.path, tab.header or []
     rows, numbers = [], []
-    for i, (number, fields) in enumerate(lines):
+    for i, (number, fields) in enumerate(tab.rows):
         try:
             if len(fields) < len(header):
                 raise ValueError(f"{len(fields)} field(s), the header has {len(header)}")
             rows.append(parse(dict(zip(header, fields, strict=False))))
             numbers.append(number)
         except (TypeError, ValueError) as exc:
-            if i == len(lines) - 1 and i > 0:
+            if i == len(tab.rows) - 1 and i > 0:
                 count(repairs, f"{what}_cut_last_line", 1)
-                say(path, f"line {number} is cut short ({','.join(fields)[:40]!r}): left out")
+                say(path, f"line {number} is cut short ({tab.lines[number - 1].strip()[:40]!r}): left out")
                 break
             raise WorkbenchError(f"malformed {what} file {path}, line {number}: {exc}") from None
     return rows, numbers

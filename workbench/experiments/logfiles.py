@@ -3,7 +3,9 @@ CSV tables (or Parquet tables of the same names and columns), a row per time, th
 with their units, and a ``manifest.json`` for what is not a column.
 
 Reading: what real logs carry is repaired with a count (:mod:`.csvfile`: a last line cut short,
-rows out of time order by up to a second, repeated stamps where a table has one row a time);
+rows out of time order by up to a second, repeated stamps where a table has one row a time; under
+it :mod:`.textfile`: a byte-order mark, blank lines at the end, a ``;`` separator with decimal
+commas, quoted fields);
 what cannot be read unambiguously is one line naming the file, the line and the column.
 Writing: every number as Python writes it back exactly (``repr``), each file to a temporary
 name and renamed, none over an existing one without ``force``.
@@ -75,11 +77,8 @@ def table(folder: Path, name: str, columns: tuple[str, ...], repairs: dict, opti
         return _parquet(parquet, columns, optional, one_per_time)
     if not path.is_file():
         raise WorkbenchError(f"{path}: missing")
-    import csv
-
-    with open(path, newline="", encoding="utf-8-sig") as fh:
-        header = [h.strip() for h in next(csv.reader(fh), [])]
-    present = [c for c in optional if c in header]
+    tab = csvfile.read_table(path, columns, name, repairs)
+    present = [c for c in optional if c in tab.header]
 
     def parse(record: dict[str, str]) -> tuple:
         out = []
@@ -90,7 +89,7 @@ def table(folder: Path, name: str, columns: tuple[str, ...], repairs: dict, opti
                 raise ValueError(f"column {c}: {exc}") from None
         return tuple(out)
 
-    rows, lines = csvfile.read_rows(path, columns, parse, name, repairs)
+    rows, lines = csvfile.parse_rows(tab, parse, name, repairs)
     values = np.array(rows, float).reshape(len(rows), -1)
     order = csvfile.in_order(path, values[:, 0], lines, 1.0, name, repairs)
     values, lines = values[order], np.asarray(lines)[order]
