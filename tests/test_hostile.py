@@ -390,14 +390,22 @@ def test_a_dem_with_a_short_tie_point_is_one_line(tmp_path):
     assert "tie point (33922) 6" in str(err.value) and "got 3 and 3" in str(err.value)
 
 
-def test_an_orientation_in_utf16_is_one_line(tmp_path):
+def test_an_orientation_in_utf16_is_read_with_its_bom_and_one_line_without(tmp_path):
+    """A spreadsheet's "Unicode text" (UTF-16 with a byte-order mark) is read and counted; UTF-16
+    without one cannot be told from binary data: one line naming the file and the line."""
+    from workbench.errors import DataWarning
     from workbench.experiments.terrain import ngi_orientation
 
     path = tmp_path / ngi_orientation.TEXT
     path.write_bytes("3324c_2015_1004_05_0182_RGB 1 2 3 0 0 0\n".encode("utf-16"))
+    repairs: dict[str, int] = {}
+    with pytest.warns(DataWarning, match="UTF-16 byte-order mark"):
+        got = ngi_orientation.read(path, repairs)
+    assert np.array_equal(got["0182"], [1, 2, 3, 0, 0, 0]) and repairs == {"camera_pos_ori_bom": 1}
+    path.write_bytes("3324c_2015_1004_05_0182_RGB 1 2 3 0 0 0\n".encode("utf-16-le"))
     with pytest.raises(WorkbenchError) as err:
         ngi_orientation.read(path)
-    assert "cannot read camera_pos_ori.txt" in str(err.value)
+    assert "camera_pos_ori.txt, line 1: binary data" in str(err.value) and "\n" not in str(err.value)
 
 
 def test_a_camera_looking_at_the_sky_is_one_line():

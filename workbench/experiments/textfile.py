@@ -257,6 +257,8 @@ def _rows(path: Path, lines: list[str], start: int, sep: str | None, comments: s
         bare = _outside_quotes(line)
         if sep != ";" and ";" in bare:
             _mixed(path, i, ";", sep)
+        if width is None and sep is not WHITESPACE and len(fields) == 1 and len(bare.split()) >= 2:
+            _mixed(path, i, WHITESPACE, sep)
         if width is not None and len(fields) > width and any(fields[width:]):
             hint = " (a \',\' inside a number? decimal commas need a \';\' separator)" if sep == "," else ""
             raise WorkbenchError(f"{path}, line {i + 1}: {len(fields)} fields, the header has {width}{hint}: "

@@ -36,6 +36,12 @@ Readings taken here (say so where a caller might assume otherwise):
   unknown within the step). Measurements share time stamps (several landmarks in one image), so
   their times are only non-decreasing. Time running backwards by more than ``MAX_BACKSTEP``,
   no rows, or too few columns anywhere but the last line stay errors.
+* The text is read by the shared reader (:mod:`workbench.experiments.textfile`): a byte-order
+  mark, blank lines at the end, a ``;`` (with decimal commas) or ``,`` separator, quoted fields
+  are repaired and counted (``odometry_bom``, ``measurement_decimal_commas``,
+  ``barcodes_trailing_empty_lines``, ...; the key is the file's kind), said in one warning line a
+  file; what is ambiguous (mixed separators, both decimal marks) is one line naming the line.
+  A file with none of them goes straight to numpy's parser, as fast as before.
 * The default stretch starts where the start pose is known from the ground truth *and*
   odometry exists: at the first ground-truth time, or at the first odometry time if that
   is later (in MRCLAM 6 the Vicon starts about 12 s before the odometry and the robots stand
@@ -59,6 +65,7 @@ import numpy as np
 from workbench.errors import DataNotFound, DataWarning, WorkbenchError
 from workbench.estimation.alignment import interpolate_pose
 from workbench.estimation.angles import wrap
+from workbench.experiments import textfile
 
 ROBOT_SUBJECTS = frozenset(range(1, 6))
 """MRCLAM subject numbers of the robots (the landmarks are 6-20)."""
@@ -169,19 +176,19 @@ def load(folder: Path, robot: int, t_start: float | None = None, t_end: float | 
     for path in files.values():
         _check_file(path)
 
-    subject_of = _read_barcodes(folder / "Barcodes.dat")
+    subject_of = _read_barcodes(folder / "Barcodes.dat", repairs)
     if (folder / "Landmark_Groundtruth.dat").exists():
-        landmarks = _read_landmarks(folder / "Landmark_Groundtruth.dat")
+        landmarks = _read_landmarks(folder / "Landmark_Groundtruth.dat", repairs)
     else:
         landmarks = {s: np.full(2, np.nan) for s in sorted(set(subject_of.values()) - ROBOT_SUBJECTS)}
         repairs["no_landmark_truth"] = 1
         _say(folder / "Landmark_Groundtruth.dat", f"absent: the {len(landmarks)} subjects of Barcodes.dat that are not "
                                                   "robots are landmarks of unknown place (no map error)")
 
-    raw = {"odometry": _read_table(files["odometry"], 3, repairs=repairs),
-           "measurement": _read_table(files["measurement"], 4, int_cols=(1,), repairs=repairs)}
+    raw = {"odometry": _read_table(files["odometry"], 3, repairs=repairs, cut=True),
+           "measurement": _read_table(files["measurement"], 4, int_cols=(1,), repairs=repairs, cut=True)}
     if has_truth:
-        raw["groundtruth"] = _read_table(files["groundtruth"], 4, repairs=repairs)
+        raw["groundtruth"] = _read_table(files["groundtruth"], 4, repairs=repairs, cut=True)
     for kind, table in raw.items():  # on the file's rows, before any reordering: the lines named are the file's
         _check_ranges(files[kind], table, SANE[kind])
     odom = _in_order(files["odometry"], raw["odometry"], repairs)
@@ -263,15 +270,22 @@ def _check_file(path: Path) -> None:
         raise WorkbenchError(f"not a file: {path}")
 
 
+def _what(path: Path) -> str:
+    """The name a file's repairs are counted under: ``odometry``, ``measurement``, ``groundtruth``
+    (the robot's files), ``landmarks``, ``barcodes``."""
+    return {"Landmark_Groundtruth": "landmarks"}.get(path.stem, path.stem.split("_")[-1].lower())
+
+
+def _text(path: Path, repairs: dict | None, quiet: bool = False) -> textfile.Table:
+    """The file through the shared text reader (:mod:`.textfile`): whitespace separated (or ``;``
+    / ``,``), ``#`` comments, latin-1; its text quirks counted in ``repairs``."""
+    return textfile.table(path, _what(path), {} if repairs is None else repairs, separator=textfile.WHITESPACE,
+                          comments="#", encoding="latin-1", quiet=quiet)
+
+
 def _data_lines(path: Path) -> list[tuple[int, list[str]]]:
-    """(1-based line number, tokens) of every data line, as ``np.loadtxt(comments='#')`` sees them."""
-    text = path.read_text(encoding="latin-1")
-    rows = []
-    for number, line in enumerate(text.splitlines(), start=1):
-        tokens = line.split("#", 1)[0].split()
-        if tokens:
-            rows.append((number, tokens))
-    return rows
+    """(1-based line number, tokens) of every data line, as :func:`_read_table` parsed them."""
+    return _text(path, None, quiet=True).rows
 
 
 def _line_of(path: Path, row: int) -> int:
@@ -298,21 +312,28 @@ def _check_ranges(path: Path, table: np.ndarray, checks: tuple) -> None:
                                  f"[{lo:g}, {hi:g}] (a corrupted value?)")
 
 
-def _read_table(path: Path, ncols: int, int_cols: tuple[int, ...] = (), repairs: dict | None = None) -> np.ndarray:
+def _read_table(path: Path, ncols: int, int_cols: tuple[int, ...] = (), repairs: dict | None = None,
+                cut: bool = False) -> np.ndarray:
     """The first ``ncols`` columns of a whitespace-separated ``#``-commented file, as floats.
 
-    The fast path is numpy's C parser; only when it fails is the file scanned line by line to
-    name the offending line. A last line cut short is left out (and counted in ``repairs``)
-    where ``repairs`` is given.
+    The fast path is numpy's C parser on the file itself where its bytes show none of the text
+    quirks :mod:`.textfile` repairs (:func:`.textfile.plain`); otherwise on the rows that reader
+    gives (its repairs counted in ``repairs``). Only when the parser fails is the file scanned line
+    by line to name the offending line. A last line cut short is left out (and counted in
+    ``repairs``) where ``cut``.
     """
     _check_file(path)
+    source: Path | list[str] = path
+    delimiter = None
+    if not textfile.plain(path.read_bytes()):  # the fields one by one: a tab cannot be inside one
+        source, delimiter = ["\t".join(fields) for _, fields in _text(path, repairs).rows], "\t"
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", UserWarning)  # "input contained no data"
-            table = np.loadtxt(path, comments="#", usecols=range(ncols), ndmin=2, dtype=float,
-                               encoding="latin-1")
+            table = np.loadtxt(source, comments="#", delimiter=delimiter, usecols=range(ncols), ndmin=2,
+                               dtype=float, encoding="latin-1")
     except (ValueError, UnicodeDecodeError) as exc:
-        table = _without_cut_last_line(path, ncols) if repairs is not None else None
+        table = _without_cut_last_line(path, ncols) if cut and repairs is not None else None
         if table is None:
             _diagnose(path, ncols)
             first = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
@@ -339,7 +360,7 @@ def _without_cut_last_line(path: Path, ncols: int) -> np.ndarray | None:
     the table's (a log whose writer stopped mid-line; its last number may be cut too); None if
     anything else is wrong."""
     lines = _data_lines(path)
-    if len(lines) < 2 or b"\0" in path.read_bytes():
+    if len(lines) < 2:
         return None
 
     def good(tokens: list[str]) -> bool:
@@ -370,9 +391,8 @@ def _say(path: Path, what: str) -> None:
 
 
 def _diagnose(path: Path, ncols: int) -> None:
-    """Raise a WorkbenchError naming the first line with too few columns or a bad number."""
-    if b"\0" in path.read_bytes():
-        raise WorkbenchError(f"{path}: binary data, not a whitespace-separated text table")
+    """Raise a WorkbenchError naming the first line with too few columns or a bad number (binary
+    data is refused by :mod:`.textfile`)."""
     for number, tokens in _data_lines(path):
         if len(tokens) < ncols:
             raise WorkbenchError(f"{path}: line {number}: {len(tokens)} column(s), expected at least "
@@ -410,15 +430,15 @@ def _in_order(path: Path, table: np.ndarray, repairs: dict) -> np.ndarray:
     return table[order]
 
 
-def _read_landmarks(path: Path) -> dict[int, np.ndarray]:
-    table = _read_table(path, 3, int_cols=(0,))
+def _read_landmarks(path: Path, repairs: dict | None = None) -> dict[int, np.ndarray]:
+    table = _read_table(path, 3, int_cols=(0,), repairs=repairs)
     subjects = table[:, 0].astype(int)
     _check_unique(path, subjects, "landmark subject")
     return {int(s): table[i, 1:3].copy() for i, s in enumerate(subjects)}
 
 
-def _read_barcodes(path: Path) -> dict[int, int]:
-    table = _read_table(path, 2, int_cols=(0, 1)).astype(int)
+def _read_barcodes(path: Path, repairs: dict | None = None) -> dict[int, int]:
+    table = _read_table(path, 2, int_cols=(0, 1), repairs=repairs).astype(int)
     _check_unique(path, table[:, 1], "barcode")
     return {int(b): int(s) for s, b in table}
 

@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
+from workbench.experiments import textfile
 from workbench.recording.stream import check_plain_output, write_text_atomic
 
 
@@ -23,9 +24,13 @@ def format_tum(t: np.ndarray, pose: np.ndarray) -> str:
                    for r in rows)
 
 
-def read_tum(path: Path) -> tuple[np.ndarray, np.ndarray]:
-    """Times and planar poses ``(x, y, phi)`` back from a TUM file."""
-    a = np.loadtxt(path, ndmin=2)
+def read_tum(path: Path, repairs: dict[str, int] | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Times and planar poses ``(x, y, phi)`` back from a TUM file, through the shared text reader
+    (:mod:`workbench.experiments.textfile`: ``#`` comments; a text export's quirks repaired, counted
+    in ``repairs`` as ``tum_*``, said in a warning)."""
+    tab = textfile.table(Path(path), "tum", {} if repairs is None else repairs, separator=textfile.WHITESPACE,
+                         comments="#")
+    a = np.loadtxt(["\t".join(fields) for _, fields in tab.rows], delimiter="\t", ndmin=2)
     phi = 2 * np.arctan2(a[:, 6], a[:, 7])
     return a[:, 0], np.column_stack([a[:, 1], a[:, 2], np.angle(np.exp(1j * phi))])
 

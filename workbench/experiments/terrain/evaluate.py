@@ -34,6 +34,7 @@ class RunSummary(Summary):
     nodes: int
     ground_maps: dict[str, np.ndarray] = field(default_factory=dict)  # the recorded run's error maps
     ba_bound: bool = False            # the bundle adjustment's own graph gave its bound (else the images')
+    repairs: dict = field(default_factory=dict)  # what reading the real files needed (ngi, log): data_repairs
 
 
 def summarise(res: RunResult, cfg: TerrainConfig, run: int) -> RunSummary:
@@ -54,18 +55,22 @@ def summarise(res: RunResult, cfg: TerrainConfig, run: int) -> RunSummary:
     maps = ground_maps(metric.MetricContext(cfg, run, cache=res.cache, result=res)) if res.record else {}
     has_ba = "gtsam-ba" in res.estimates and bool(res.shared("bound_ba", lambda: ba_bound(res, cfg)))
     return RunSummary(run, pos, att, hit, hit_linear, 0 if res.search is None else len(res.search.centres),
-                      0 if res.search is None else res.search.nodes, maps, has_ba, failed=dict(res.failed))
+                      0 if res.search is None else res.search.nodes, maps, has_ba,
+                      dict(sc.extras.get("repairs") or {}), failed=dict(res.failed))
 
 
 def statistics(cfg: TerrainConfig, runs: list[RunSummary], stats: dict) -> None:
     """What the metrics JSON holds beyond the metrics: the error mode and its sizes, the units,
     the search's hypotheses and nodes and how often its winner is the true cell, each estimator's
     bound, and its position, attitude and ground errors over the navigation system's (``reduction``,
-    ``attitude_reduction``, ``ground_reduction``)."""
+    ``attitude_reduction``, ``ground_reduction``); what reading the real files repaired
+    (``data_repairs``)."""
     stats.update({"mode": cfg.mode, "size": cfg.size, "distribution": cfg.distribution,
                   "max_linear": cfg.max_linear, "max_angular": cfg.max_angular,
                   "units": {"position_error": "m", "attitude_error": "rad", "ground_rmse": "m", "seconds": "s"},
                   "hypotheses": runs[0].hypotheses, "nodes": runs[0].nodes})
+    if runs[0].repairs:
+        stats["data_repairs"] = dict(runs[0].repairs)
     hits = [r.winner_in_true_cell for r in runs if r.winner_in_true_cell is not None]
     stats["winner_in_true_cell"] = float(np.mean(hits)) if hits else None
     hits = [r.winner_in_true_position_cell for r in runs if r.winner_in_true_position_cell is not None]

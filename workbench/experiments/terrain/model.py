@@ -232,7 +232,7 @@ def load(path: str | Path) -> Model:
     require(manifest_path.is_file(), f"{folder} is not a halftone model folder (no model.json; a terrain run "
                                      "writes one with --model)")
     try:
-        manifest = json.loads(manifest_path.read_text())
+        manifest = json.loads(manifest_path.read_text(encoding="utf-8-sig"))  # a BOM as logfiles.manifest
     except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
         raise WorkbenchError(f"cannot read {manifest_path}: {exc}") from None
     require(isinstance(manifest, dict) and manifest.get("format") == FORMAT,

@@ -96,7 +96,8 @@ def load(cfg: TerrainConfig) -> Scene:
     w, h = cfg.image_size
     cam = ngi_interior.interior(root)
     check_size((w, h), cam.size)
-    orient = {f: _pose(v) for f, v in ngi_orientation.orientation(root, tuple(cfg.pair)).items()}
+    repairs: dict[str, int] = {}
+    orient = {f: _pose(v) for f, v in ngi_orientation.orientation(root, tuple(cfg.pair), repairs).items()}
     dem = read_geotiff(root / "dem.tif")
     k = cam.intrinsics(w, h)
     position = np.stack([orient[f][0] for f in cfg.pair])
@@ -109,4 +110,5 @@ def load(cfg: TerrainConfig) -> Scene:
     interval = float(np.linalg.norm(position[1, :2] - position[0, :2]) / cfg.speed)
     depth = position[:, 2].mean() - dem.mean_height
     label = f"ngi {cfg.pair[0]}/{cfg.pair[1]} at {w}x{h}, ~{depth / k.fx:.0f} m pixels"
-    return Scene(label, dem, k, position, angles, images, interval, extras={"dem_path": str(root / "dem.tif")})
+    return Scene(label, dem, k, position, angles, images, interval,
+                 extras={"dem_path": str(root / "dem.tif"), "repairs": repairs})

@@ -2,13 +2,17 @@
 omega phi kappa, space separated, six decimals) and ``ngi_xyz_opk.csv`` (the same with a header
 line, comma separated, three decimals).
 
-The orientation is the truth every error is measured against, so nothing in it is repaired: a
+The orientation is the truth every error is measured against, so no value in it is repaired: a
 line with the wrong number of fields (a last line cut short by a copy that stopped mid-file
 included), a value that is not a finite number, a frame given twice with different values, a
 frame missing, or the two files disagreeing beyond the csv's rounding is a one-line
-:class:`~workbench.errors.WorkbenchError` naming the file and the line (exit code 2). The only
-thing tolerated is a missing ``camera_pos_ori.txt`` when the csv is there: the csv's orientation
-is used and a :class:`~workbench.errors.DataWarning` says so.
+:class:`~workbench.errors.WorkbenchError` naming the file and the line (exit code 2). Tolerated:
+a missing ``camera_pos_ori.txt`` when the csv is there (the csv's orientation is used and a
+:class:`~workbench.errors.DataWarning` says so), and what a text export changes in the text but
+not in a value, read by the shared reader (:mod:`workbench.experiments.textfile`): a byte-order
+mark, blank lines at the end, a ``;`` separator with decimal commas (or a tab; in the text file
+``,``), quoted fields, each counted (``<file stem>_<quirk>``, in the metrics' ``data_repairs``)
+and said in one warning line.
 """
 
 from __future__ import annotations
@@ -20,6 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from workbench.errors import DataWarning, WorkbenchError, require
+from workbench.experiments import textfile
 
 TEXT = "camera_pos_ori.txt"
 CSV = "ngi_xyz_opk.csv"
@@ -55,30 +60,27 @@ def _fields(path: Path, n: int, line: str, fields: list[str], cut: bool) -> tupl
     return frame_id(fields[0]), values
 
 
-def read(path: Path) -> dict[str, np.ndarray]:
+def read(path: Path, repairs: dict[str, int] | None = None) -> dict[str, np.ndarray]:
     """Frame id -> ``(x, y, z, omega, phi, kappa)`` from either file (by its name: ``.csv`` is
-    comma separated with a header line, anything else space separated)."""
+    comma separated with a header line, anything else space separated), through the shared text
+    reader (:mod:`workbench.experiments.textfile`: its repairs counted in ``repairs`` under the
+    file's stem, ``camera_pos_ori_bom``, ``ngi_xyz_opk_separator_semicolon``, ...)."""
     require(path.is_file(), f"orientation file not found: {path}")
-    try:
-        text = path.read_text()
-    except (OSError, UnicodeDecodeError) as exc:
-        raise WorkbenchError(f"cannot read {path.name}: {type(exc).__name__}") from None
     csv = path.suffix.lower() == ".csv"
-    lines = text.splitlines()
-    last = max((i for i, line in enumerate(lines) if line.strip()), default=-1)
-    cut_possible = not text.endswith(("\n", "\r"))
+    try:
+        tab = textfile.table(path, path.stem, {} if repairs is None else repairs,
+                             separator="," if csv else textfile.WHITESPACE, comments="#")
+    except OSError as exc:
+        raise WorkbenchError(f"cannot read {path.name}: {type(exc).__name__}") from None
     out: dict[str, np.ndarray] = {}
     where: dict[str, int] = {}
-    for i, line in enumerate(lines):
-        n = i + 1
-        if not line.strip() or line.lstrip().startswith("#"):
-            continue
-        fields = [f.strip() for f in line.split(",")] if csv else line.split()
-        if csv and not where and not out and fields[0].lower() == CSV_HEADER[0]:
+    for i, (n, fields) in enumerate(tab.rows):
+        line = tab.lines[n - 1]
+        if csv and i == 0 and fields[0].lower() == CSV_HEADER[0]:
             require(tuple(f.lower() for f in fields) == CSV_HEADER,
                     f"{path.name} line {n}: header {line.strip()!r}, expected {','.join(CSV_HEADER)}")
             continue
-        frame, values = _fields(path, n, line, fields, cut_possible and i == last)
+        frame, values = _fields(path, n, line, fields, not tab.ended and i == len(tab.rows) - 1)
         if frame in out and not np.array_equal(out[frame], values):
             raise WorkbenchError(f"{path.name}: frame {frame} on lines {where[frame]} and {n} with different values")
         out[frame], where[frame] = values, n
@@ -97,20 +99,22 @@ def check_agree(text: dict[str, np.ndarray], csv: dict[str, np.ndarray], frames:
                                   f"(more than the csv's rounding, {tol:g} {unit})")
 
 
-def orientation(folder: Path, frames: tuple[str, ...]) -> dict[str, np.ndarray]:
+def orientation(folder: Path, frames: tuple[str, ...], repairs: dict[str, int] | None = None
+                ) -> dict[str, np.ndarray]:
     """The orientation of ``frames`` from ``folder``: the text file's, checked against the csv
-    where both are there; the csv's alone (with a warning) where the text file is missing."""
+    where both are there; the csv's alone (with a warning) where the text file is missing. What
+    reading the text repaired is counted in ``repairs`` (:func:`read`)."""
     text_path, csv_path = folder / TEXT, folder / CSV
     if not text_path.is_file() and csv_path.is_file():
         warnings.warn(DataWarning(f"{TEXT} not found in {folder}: the orientation is {CSV}'s (three decimals)"),
                       stacklevel=2)
-        primary = read(csv_path)
+        primary = read(csv_path, repairs)
         _require_frames(primary, frames, CSV)
         return primary
-    primary = read(text_path)
+    primary = read(text_path, repairs)
     _require_frames(primary, frames, TEXT)
     if csv_path.is_file():
-        second = read(csv_path)
+        second = read(csv_path, repairs)
         _require_frames(second, frames, CSV)
         check_agree(primary, second, frames)
     return primary

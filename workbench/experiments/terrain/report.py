@@ -35,6 +35,9 @@ def table(stats: dict) -> str:
                         f"spread against R): {stats['nodes']} nodes count as {e['effective_nodes']:.0f} independent "
                         "ones")
         lines.append(f"- {name}: " + "; ".join(bits))
+    if stats.get("data_repairs"):
+        lines += ["", "Reading the data: " + ", ".join(f"{k.replace('_', ' ')} {v}"
+                                                       for k, v in stats["data_repairs"].items())]
     lines += [""] + markdown.verdicts(stats) + markdown.bounds_table(stats, BOUNDS)
     lines += ["Errors are image II's (truth - estimate): position as a 3D norm, attitude as the norm of the "
               "three angles, means over runs; ground rmse is the halftone model's horizontal error over every pixel "
