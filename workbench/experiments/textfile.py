@@ -26,7 +26,7 @@ after it), numbers written with both decimal marks, a number with both marks (``
 quoted field running over its line's end.
 
 The fast path: a file none of whose quirks need a field's attention (no ``"``, and no ``,`` where
-``,`` is not the separator) is split with ``str.split`` / the C ``csv`` reader and nothing else;
+``,`` is not the separator) is split with ``str.split`` and nothing else;
 :func:`plain` says so from the bytes alone for callers that have a faster parser of their own
 (MRCLAM's ``np.loadtxt``).
 """
@@ -131,9 +131,10 @@ def table(path: Path, what: str, repairs: dict[str, int], *, columns: Sequence[s
 
     ``columns``: the file has a header line (its first) that must hold these names; the separator
     is the one of ``,``, ``;``, tab whose split of the header holds them all. Without ``columns``
-    the separator is found on the first row: ``;`` where it has one, else a tab (a ``,``-separated
-    format), else ``,`` (a whitespace-separated format whose first row has no field at all without
-    a comma between). ``comments``: a character that starts a comment to the end of the line.
+    the separator is found on the first row: ``;`` where it has one; in a ``,``-separated format a
+    tab where the row has no ``,``; in a whitespace-separated format ``,`` where the commas stand
+    between the fields (``1.0,2.0`` or ``1.0, 2.0``; in ``1,5 2,5`` they are decimal commas); else
+    the format's. ``comments``: a character that starts a comment to the end of the line.
     ``quiet``: count, but say nothing (a second read to name a line).
     """
     raw = path.read_bytes()
@@ -158,7 +159,7 @@ def table(path: Path, what: str, repairs: dict[str, int], *, columns: Sequence[s
     if quoted:
         _count(repairs, f"{what}_quoted_fields", quoted)
         said.append(f"{quoted} quoted field(s)")
-    if sep != ",":
+    if sep != "," and b"," in raw:
         commas = _decimal_commas(path, rows)
         if commas:
             _count(repairs, f"{what}_decimal_commas", commas)
