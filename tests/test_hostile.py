@@ -6,6 +6,7 @@ an "internal error", a hang, a leftover temporary file or a metrics file that is
 
 from __future__ import annotations
 
+import dataclasses
 import errno
 import json
 import math
@@ -153,6 +154,57 @@ def test_every_option_value_is_a_config_or_one_line_error(exp, opt):
             for x in (v if isinstance(v, tuple) else (v,)):
                 if isinstance(x, float):
                     assert math.isfinite(x) and abs(x) <= 1e9, (f, x)
+
+    check()
+
+
+VALUES = st.one_of(FLOATS, INTS, TEXT, st.booleans(), st.none(), st.lists(st.one_of(FLOATS, INTS, TEXT), max_size=3))
+FIELDS = [(exp, f.name) for exp in all_experiments() for f in dataclasses.fields(exp.config_type)]
+
+
+@pytest.mark.parametrize("exp", all_experiments(), ids=lambda e: e.name)
+def test_every_config_file_value_is_a_config_or_one_line_error(exp):
+    """Any key of a config file (``--config``: a field, an option's name or neither) with any value
+    TOML or JSON can hold gives a validated config or one line: never another exception."""
+    keys = [f.name for f in dataclasses.fields(exp.config_type)] + [o.flags[0].lstrip("-") for o in exp.options]
+
+    @settings(max_examples=300, deadline=None, database=None, derandomize=True,
+              suppress_health_check=[HealthCheck.too_slow])
+    @given(key=st.one_of(st.sampled_from(keys), TEXT), value=VALUES)
+    def check(key, value):
+        GENERATED["cases"] += 1
+        try:
+            api.configure(exp, config={key: value})
+        except WorkbenchError as exc:
+            GENERATED["errors"] += 1
+            assert "\n" not in str(exc) and str(exc)
+
+    check()
+
+
+@pytest.mark.parametrize("exp", all_experiments(), ids=lambda e: e.name)
+def test_every_tune_param_is_a_space_or_one_line_error(exp):
+    """Any ``--param`` a user can type (a field or option, LOW:HIGH[:log] of any text) gives a
+    checked search space or one line (``workbench tune``)."""
+    from workbench.tuning import space
+
+    keys = [f.name for f in dataclasses.fields(exp.config_type)] + [o.flags[0].lstrip("-") for o in exp.options]
+    bound = st.one_of(FLOATS.map(repr), INTS.map(str), TEXT)
+
+    @settings(max_examples=300, deadline=None, database=None, derandomize=True,
+              suppress_health_check=[HealthCheck.too_slow])
+    @given(key=st.one_of(st.sampled_from(keys), TEXT), low=bound, high=bound,
+           scale=st.sampled_from(["", ":log", ":lin", ":", ":log:x"]), eq=st.sampled_from(["=", "", "=="]))
+    def check(key, low, high, scale, eq):
+        GENERATED["cases"] += 1
+        try:
+            params = space.parse(exp, [f"{key}{eq}{low}:{high}{scale}"], {}, None)
+        except WorkbenchError as exc:
+            GENERATED["errors"] += 1
+            assert "\n" not in str(exc) and str(exc)
+            return
+        for p in params:  # what was accepted is a finite range, positive where it is on a log scale
+            assert math.isfinite(p.low) and math.isfinite(p.high) and p.low < p.high and (p.low > 0 or not p.log)
 
     check()
 

@@ -57,7 +57,7 @@ def settings(exp: Any, table: Mapping[str, Any], source: str = "--config") -> di
     hints = typing.get_type_hints(exp.config_type)
     out: dict[str, Any] = {}
     for key, value in table.items():
-        where = f"{source}: {key}"
+        where = f"{source}: {key if str(key).isprintable() else repr(key)}"
         if isinstance(value, dict):
             raise WorkbenchError(f"{where}: a table; a config file is flat (key = value)")
         name, opt = resolve(exp, key)

@@ -56,6 +56,8 @@ class Param:
 def parse_one(exp: Any, spec: str) -> Param:
     """``NAME=LOW:HIGH[:log]`` as a :class:`Param` of ``exp``'s config (one-line errors)."""
     text = str(spec).strip()
+    if not text.isprintable():
+        raise WorkbenchError(f"--param {text!r}: a control character; it must look like NAME=LOW:HIGH[:log]")
     key, eq, rng = text.partition("=")
     parts = [p.strip() for p in rng.split(":")]
     if not eq or not key.strip() or len(parts) not in (2, 3):
