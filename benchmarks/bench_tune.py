@@ -41,7 +41,8 @@ def main() -> None:
     print(f"load average {os.getloadavg()[0]:.2f}; {args.trials} trials x {args.runs} runs on {res.executor}")
     print(f"wall {wall:.1f} s; the runs' own {res.run_seconds:.1f} s over {args.jobs} workers = {runs_share:.1f} s")
     print(f"beyond the runs: {over:.1f} s = {100 * over / wall:.1f} % of the study (target < 5 %); "
-          f"the tuner's own seconds in the main process {res.tuner_seconds:.1f} s = {100 * res.tuner_seconds / wall:.1f} %")
+          f"the tuner's own seconds in the main process {res.tuner_seconds:.1f} s "
+          f"= {100 * res.tuner_seconds / wall:.1f} %")
     print(f"best: {res.best}")
 
 

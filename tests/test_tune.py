@@ -15,7 +15,7 @@ import pyarrow.parquet as pq
 import pytest
 from launcher import wb
 
-from workbench.tuning import study as studies
+from workbench.tuning import files as studies
 
 SMALL = ("--set", "duration=20", "--set", "assume-sigma-acc=1.0", "--runs", "2", "--estimator", "ekf")
 

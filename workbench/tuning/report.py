@@ -16,6 +16,7 @@ import numpy as np
 
 from workbench.experiments import configfile, get
 from workbench.recording import stream
+from workbench.tuning import files
 from workbench.tuning.objective import resolve
 
 
@@ -33,10 +34,8 @@ def best_values(manifest: dict, best: Any) -> dict[str, Any]:
 
 def write(folder: Path) -> tuple[list[Path], dict]:
     """Write the report; the files written and the best trial (number, value, its error, params)."""
-    from workbench.tuning import study as studies
-
     folder = Path(folder)
-    manifest, study, table = studies.load(folder)
+    manifest, study, table = files.load(folder)
     done = _completed(study)
     if not done:
         md = f"# Tuning study: {manifest['experiment']}\n\nNo trial finished with a finite objective.\n"
@@ -47,7 +46,7 @@ def write(folder: Path) -> tuple[list[Path], dict]:
     objective = resolve(manifest["objective"], manifest["estimator"], exp.metrics(base))
     best = min(done, key=lambda t: (t.value, t.number))
     rows = table.filter(np.asarray(table["trial"].to_pylist()) == best.number) if table is not None else None
-    _, se = objective.value(studies.figures(rows, objective)) if rows is not None else (best.value, math.nan)
+    _, se = objective.value(files.figures(rows, objective)) if rows is not None else (best.value, math.nan)
     fields = [p["field"] for p in manifest["space"]]
     importances = _importances(study, fields, len(done))
     written = []

@@ -24,7 +24,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
@@ -33,13 +32,10 @@ from workbench.experiments import get
 from workbench.sweeps import runner
 from workbench.sweeps.tasks import Task, run_task, write
 from workbench.tuning import space as spaces
+from workbench.tuning.files import JOURNAL, MANIFEST, STUDY, TRIALS, figures, trial_file
 from workbench.tuning.objective import Objective, resolve
 from workbench.version import __version__
 
-MANIFEST = "tune.json"
-TRIALS = "trials"
-JOURNAL = "journal.log"
-STUDY = "workbench"
 WRITES = ("*.png", "*.md", "*.toml", "*.rrd", JOURNAL, f".{JOURNAL}*")
 
 
@@ -57,20 +53,6 @@ class TuneResult:
     best: dict = field(default_factory=dict)
     written: list[Path] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
-
-
-def trial_file(n: int) -> str:
-    return f"trial{n:05d}.parquet"
-
-
-def figures(table: pa.Table, objective: Objective) -> np.ndarray:
-    """The objective's metric's figure of each run of a trial (its rows), in run order."""
-    est = np.asarray(table["estimator"].to_pylist())
-    met = np.asarray(table["metric"].to_pylist())
-    pick = (est == objective.estimator) & (met == objective.metric)
-    runs = np.asarray(table["run"].to_pylist())[pick]
-    vals = np.asarray(table["value"].to_pylist(), float)[pick]
-    return vals[np.argsort(runs)]
 
 
 def failure(table: pa.Table, estimator: str) -> str | None:
@@ -160,6 +142,8 @@ def tune(experiment: str, params: list[spaces.Param], objective_name: str = "lik
     notes = spaces.notes(params)
     t0 = time.perf_counter()
     with runner.executor(jobs, scheduler, local_cluster) as (pool, where, workers):
+        if not batch and resume and (Path(out) / MANIFEST).is_file():  # the study's own, whatever runs it now
+            batch = json.loads((Path(out) / MANIFEST).read_text()).get("batch")
         batch = batch or max(2, 2 * workers)
         manifest["batch"] = batch
         folder = runner.prepare(out, manifest, resume, force, what="study", name=MANIFEST, sub=TRIALS, kinds=WRITES,
@@ -251,19 +235,3 @@ def tune(experiment: str, params: list[spaces.Param], objective_name: str = "lik
         result.tuner_seconds += time.perf_counter() - t1
     return result
 
-
-def load(folder: Path) -> tuple[dict, Any, pa.Table]:
-    """A study folder's manifest, its Optuna study (read from the journal) and every trial's rows."""
-    import optuna
-    from optuna.storages import JournalStorage
-    from optuna.storages.journal import JournalFileBackend
-
-    folder = Path(folder)
-    if not (folder / MANIFEST).is_file() or not (folder / JOURNAL).is_file():
-        raise WorkbenchError(f"{folder} holds no tuning study ({MANIFEST} and {JOURNAL})")
-    manifest = json.loads((folder / MANIFEST).read_text())
-    optuna.logging.set_verbosity(optuna.logging.WARNING)
-    study = optuna.load_study(study_name=STUDY, storage=JournalStorage(JournalFileBackend(str(folder / JOURNAL))))
-    files = sorted((folder / TRIALS).glob("*.parquet"))
-    table = pa.concat_tables([pq.read_table(f) for f in files], promote_options="default") if files else None
-    return manifest, study, table

@@ -36,12 +36,8 @@ Readings taken here (say so where a caller might assume otherwise):
   unknown within the step). Measurements share time stamps (several landmarks in one image), so
   their times are only non-decreasing. Time running backwards by more than ``MAX_BACKSTEP``,
   no rows, or too few columns anywhere but the last line stay errors.
-* The text is read by the shared reader (:mod:`workbench.experiments.textfile`): a byte-order
-  mark, blank lines at the end, a ``;`` (with decimal commas) or ``,`` separator, quoted fields
-  are repaired and counted (``odometry_bom``, ``measurement_decimal_commas``,
-  ``barcodes_trailing_empty_lines``, ...; the key is the file's kind), said in one warning line a
-  file; what is ambiguous (mixed separators, both decimal marks) is one line naming the line.
-  A file with none of them goes straight to numpy's parser, as fast as before.
+* Text quirks (a BOM, ``;`` with decimal commas, quotes, ...) are repaired and counted by
+  :mod:`workbench.experiments.textfile` (``odometry_bom``, ...); a clean file goes to numpy as is.
 * The default stretch starts where the start pose is known from the ground truth *and*
   odometry exists: at the first ground-truth time, or at the first odometry time if that
   is later (in MRCLAM 6 the Vicon starts about 12 s before the odometry and the robots stand
@@ -217,14 +213,14 @@ def load(folder: Path, robot: int, t_start: float | None = None, t_end: float | 
                              f"t_end = {t1:.3f} s")
 
     span = f"{odom[0, 0]:.3f} to {odom[-1, 0]:.3f} s"
-    odom = odom[_between(odom[:, 0], t0, t1)]
+    odom = odom[(odom[:, 0] >= t0) & (odom[:, 0] <= t1)]
     if odom.shape[0] == 0:
         raise WorkbenchError(f"{files['odometry']}: no odometry between {t0:.3f} and {t1:.3f} s "
                              f"(the file spans {span})")
     odom, odom_repeat = _last_of_repeats(odom)
     if odom_repeat:
         _say(files["odometry"], f"{odom_repeat} repeated time stamp(s): the last row of each kept")
-    meas = meas[_between(meas[:, 0], t0, t1)]
+    meas = meas[(meas[:, 0] >= t0) & (meas[:, 0] <= t1)]
     lo = max(int(np.searchsorted(truth[:, 0], t0, side="right")) - 1, 0)
     hi = int(np.searchsorted(truth[:, 0], t1, side="left")) + 1
     truth, truth_repeat = _last_of_repeats(truth[lo:hi]) if has_truth else (truth, 0)
@@ -271,20 +267,17 @@ def _check_file(path: Path) -> None:
 
 
 def _what(path: Path) -> str:
-    """The name a file's repairs are counted under: ``odometry``, ``measurement``, ``groundtruth``
-    (the robot's files), ``landmarks``, ``barcodes``."""
+    """The name a file's repairs are counted under (``odometry``, ``landmarks``, ``barcodes``, ...)."""
     return {"Landmark_Groundtruth": "landmarks"}.get(path.stem, path.stem.split("_")[-1].lower())
 
 
 def _text(path: Path, repairs: dict | None, quiet: bool = False) -> textfile.Table:
-    """The file through the shared text reader (:mod:`.textfile`): whitespace separated (or ``;``
-    / ``,``), ``#`` comments, latin-1; its text quirks counted in ``repairs``."""
+    """The file through :mod:`.textfile` (whitespace, ``#`` comments, latin-1), its quirks counted."""
     return textfile.table(path, _what(path), {} if repairs is None else repairs, separator=textfile.WHITESPACE,
                           comments="#", encoding="latin-1", quiet=quiet)
 
 
-def _data_lines(path: Path) -> list[tuple[int, list[str]]]:
-    """(1-based line number, tokens) of every data line, as :func:`_read_table` parsed them."""
+def _data_lines(path: Path) -> list[tuple[int, list[str]]]:  # (1-based line number, tokens) of each data line
     return _text(path, None, quiet=True).rows
 
 
@@ -316,11 +309,9 @@ def _read_table(path: Path, ncols: int, int_cols: tuple[int, ...] = (), repairs:
                 cut: bool = False) -> np.ndarray:
     """The first ``ncols`` columns of a whitespace-separated ``#``-commented file, as floats.
 
-    The fast path is numpy's C parser on the file itself where its bytes show none of the text
-    quirks :mod:`.textfile` repairs (:func:`.textfile.plain`); otherwise on the rows that reader
-    gives (its repairs counted in ``repairs``). Only when the parser fails is the file scanned line
-    by line to name the offending line. A last line cut short is left out (and counted in
-    ``repairs``) where ``cut``.
+    numpy's C parser, on the file where it has no text quirk (:func:`.textfile.plain`), else on
+    :mod:`.textfile`'s rows; only when it fails is the file scanned to name the line. A last line
+    cut short is left out (counted in ``repairs``) where ``cut``.
     """
     _check_file(path)
     source: Path | list[str] = path
@@ -391,8 +382,7 @@ def _say(path: Path, what: str) -> None:
 
 
 def _diagnose(path: Path, ncols: int) -> None:
-    """Raise a WorkbenchError naming the first line with too few columns or a bad number (binary
-    data is refused by :mod:`.textfile`)."""
+    """Raise a WorkbenchError naming the first line with too few columns or a bad number."""
     for number, tokens in _data_lines(path):
         if len(tokens) < ncols:
             raise WorkbenchError(f"{path}: line {number}: {len(tokens)} column(s), expected at least "
@@ -451,9 +441,6 @@ def _check_unique(path: Path, values: np.ndarray, what: str) -> None:
         raise WorkbenchError(f"{path}: line {_line_of(path, int(rows[1]))}: {what} {value} repeats "
                              f"(first on line {_line_of(path, int(rows[0]))})")
 
-
-def _between(t: np.ndarray, t0: float, t1: float) -> np.ndarray:
-    return (t >= t0) & (t <= t1)
 
 
 def _last_of_repeats(table: np.ndarray) -> tuple[np.ndarray, int]:
