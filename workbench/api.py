@@ -85,7 +85,9 @@ def run(experiment: str | Experiment, scenario: str | None = None, *, config: An
     ``spawn`` / ``serve`` / ``connect``: stream live to a spawned viewer, a gRPC server of this
     process, or a running viewer at a ``rerun+http://...`` URL: run 0 as soon as it is computed,
     the curves over runs and the table when the Monte Carlo runs are done (the saved recording is
-    the same either way: it is written from the same results, whatever is streamed).
+    the same either way: it is written from the same results, whatever is streamed). A viewer that
+    is not there is a one-line error before any work (:func:`stream.live`); one lost during the run
+    is a :class:`stream.LiveWarning` once the outputs are written (:func:`stream.finish_live`).
     ``extras``: the experiment's extra options (e.g. omni's ``export_tum``, terrain's ``model``);
     ``export_data``: a folder for run 0's dataset in the experiment's open log format. ``progress(done,
     total)`` is called as runs finish.
@@ -130,54 +132,59 @@ def run(experiment: str | Experiment, scenario: str | None = None, *, config: An
         report(done[0], total)
 
     live = stream.live(exp.name, cfg.to_json(), cfg.seed, spawn, serve, connect)
-    report(0, total)
-    first = exp.run_once(cfg, 0, chosen, record=True, threads=min(2, jobs or 2))
-    zero = exp.evaluate(first, cfg, 0)
-    if live is not None:  # run 0 now, while the other runs compute
-        live.send_blueprint(exp.blueprint(without(first, set(first.failed)), [zero]), make_active=True)
-        exp.record_run(live, without(first, set(first.failed)), zero)
-    worker = functools.partial(summarise_run, exp.name, cfg, chosen)
-    summaries = montecarlo.run_all(worker, total, zero, jobs, tick)
-    failures: dict[str, str] = {}
-    for s in summaries:
-        for name, why in s.failed.items():
-            failures.setdefault(name, f"{why} (run {s.run})")
-    for name, why in first.failed.items():
-        failures.setdefault(name, f"{why} (run 0)")
-    gone = set(failures)
-    summaries = [without(s, gone) for s in summaries]
-    first = without(first, gone)
-    stats = exp.statistics(cfg, summaries, exp.label(first))
-    stats["estimator_table"] = {e.name: e.describe() for e in chosen if e.name not in gone}
-    if failures:
-        stats["failed"] = failures
-    if tuned is not None:
-        stats["tuned_noise"] = tuned
-    stats["wall_seconds"] = time.perf_counter() - t0
-    table = exp.table(stats)
-    if live is not None:
-        exp.record_runs(live, first, summaries, table)
-        live.send_blueprint(exp.blueprint(first, summaries, stats), make_active=True, make_default=True)
-        try:
-            live.flush(timeout_sec=stream.LIVE_FLUSH)
-        except RuntimeError as exc:  # the viewer went away (or never answered): the run and its file go on
-            warnings.warn(f"the live viewer: {str(exc).splitlines()[0]}; the recording is written all the same",
-                          stream.LiveWarning, stacklevel=2)
-    if out_path is not None:
-        with stream.recording(out_path, exp.name, cfg.to_json(), cfg.seed, exp.blueprint(first, summaries, stats),
-                              metrics=stats, force=force) as rec:
-            exp.record(rec, first, summaries, table)
-        stats["recording"] = str(out_path)
-    lines = exp.export(first, stats, extras, force)
-    if tuned is not None:
-        from workbench.tuning import selftune
+    try:
+        report(0, total)
+        first = exp.run_once(cfg, 0, chosen, record=True, threads=min(2, jobs or 2))
+        zero = exp.evaluate(first, cfg, 0)
+        if live is not None:  # run 0 now, while the other runs compute
+            live.send_blueprint(exp.blueprint(without(first, set(first.failed)), [zero]), make_active=True)
+            exp.record_run(live, without(first, set(first.failed)), zero)
+        worker = functools.partial(summarise_run, exp.name, cfg, chosen)
+        summaries = montecarlo.run_all(worker, total, zero, jobs, tick)
+        failures: dict[str, str] = {}
+        for s in summaries:
+            for name, why in s.failed.items():
+                failures.setdefault(name, f"{why} (run {s.run})")
+        for name, why in first.failed.items():
+            failures.setdefault(name, f"{why} (run 0)")
+        gone = set(failures)
+        summaries = [without(s, gone) for s in summaries]
+        first = without(first, gone)
+        stats = exp.statistics(cfg, summaries, exp.label(first))
+        stats["estimator_table"] = {e.name: e.describe() for e in chosen if e.name not in gone}
+        if failures:
+            stats["failed"] = failures
+        if tuned is not None:
+            stats["tuned_noise"] = tuned
+        stats["wall_seconds"] = time.perf_counter() - t0
+        table = exp.table(stats)
+        if live is not None:  # sent in the background: a viewer gone by now holds nothing up
+            exp.record_runs(live, first, summaries, table)
+            live.send_blueprint(exp.blueprint(first, summaries, stats), make_active=True, make_default=True)
+        if out_path is not None:
+            with stream.recording(out_path, exp.name, cfg.to_json(), cfg.seed, exp.blueprint(first, summaries, stats),
+                                  metrics=stats, force=force) as rec:
+                exp.record(rec, first, summaries, table)
+            stats["recording"] = str(out_path)
+        lines = exp.export(first, stats, extras, force)
+        if tuned is not None:
+            from workbench.tuning import selftune
 
-        lines = selftune.lines(tuned) + lines
-    if metrics_path is not None:
-        stream.write_text_atomic(metrics_path, strict_json(stats), force)
-    for name, why in failures.items():
-        warnings.warn(f"estimator {name!r} failed: {why}", RuntimeWarning, stacklevel=2)
-    return Result(exp.name, cfg, stats, table, first, summaries, out_path, metrics_path, failures, lines, live)
+            lines = selftune.lines(tuned) + lines
+        if metrics_path is not None:
+            stream.write_text_atomic(metrics_path, strict_json(stats), force)
+        if live is not None:  # the outputs are written: only now wait (at most LIVE_FLUSH) for the viewer
+            why = stream.finish_live(live)
+            if why is not None:
+                warnings.warn(f"the live viewer: {why}; the recording is written all the same",
+                              stream.LiveWarning, stacklevel=2)
+        for name, why in failures.items():
+            warnings.warn(f"estimator {name!r} failed: {why}", RuntimeWarning, stacklevel=2)
+        return Result(exp.name, cfg, stats, table, first, summaries, out_path, metrics_path, failures, lines, live)
+    except BaseException:
+        if live is not None:  # an error or Ctrl-C: a viewer that does not answer must not hold the exit
+            stream.finish_live(live, timeout=1.0)
+        raise
 
 
 def command(name: str) -> Callable:

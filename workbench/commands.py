@@ -18,6 +18,11 @@ from workbench.paths import PROJECT_ROOT
 
 RECORDINGS = PROJECT_ROOT / "recordings"
 FAILED = 3  # the run finished, but an estimator failed (its results are left out)
+QUIET_SDK = "warn,re_grpc_client=off,re_sdk::recording_stream=off,re_sdk::grpc_server=off"
+"""``RUST_LOG`` for a command that streams live: the SDK's own log lines about a viewer that went
+away or never answered (a dozen, timestamped, on stderr) silenced; the run says it in one line
+(:class:`~workbench.recording.stream.LiveWarning`). The SDK reads it once, when ``rerun`` is first
+imported; a ``RUST_LOG`` the user set is kept."""
 
 
 def _progress():
@@ -34,6 +39,10 @@ def execute(exp, scenario: str | None, out: Path | None, force: bool, metrics: P
             extras: dict | None = None, connect: str | None = None, config: Path | None = None, **overrides):
     """What every experiment command does, through the API; prints the table and the outputs.
     Exits with :data:`FAILED` (after writing everything) if an estimator or a metric failed."""
+    import os
+
+    if spawn or serve or connect is not None:
+        os.environ.setdefault("RUST_LOG", QUIET_SDK)  # before the first import of rerun (below)
     from workbench import api
 
     bar, task = _progress()

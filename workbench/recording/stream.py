@@ -148,6 +148,11 @@ LIVE_FLUSH = 10.0
 """The longest wait (s) for a live viewer to take the end of a run."""
 
 
+PROBE = 3.0
+"""The longest wait (s) for a ``--connect`` viewer's address to answer before any work: a viewer
+that is not there is a one-line error within this, not a run that hangs on it."""
+
+
 class LiveWarning(UserWarning):
     """The live viewer could not be reached; the run goes on (the command line prints one line)."""
 
@@ -157,28 +162,163 @@ def live(experiment: str, config: dict, seed: int, spawn: bool = False, serve: b
     """A recording stream to a live viewer, or ``None`` if none is asked for: ``spawn`` a native
     viewer (where one cannot start, a warning line and the run goes on without it), ``serve``
     the stream over gRPC from this process, or ``connect`` to a viewer or ``rerun --serve-grpc``
-    at a ``rerun+http://HOST:PORT/proxy`` URL."""
+    at a ``rerun+http://HOST:PORT/proxy`` URL.
+
+    Before any work: a ``connect`` URL that is malformed, or whose address does not accept a
+    connection within :data:`PROBE` seconds (:func:`probe`), and a ``serve`` port that is taken,
+    are a one-line :class:`WorkbenchError`. A viewer lost later costs only the live view: the SDK
+    sends in the background, the saved recording is a stream of its own (:func:`recording`), and
+    the last flush waits :data:`LIVE_FLUSH` seconds at most (:func:`finish_live`)."""
     import warnings
 
     sinks: list = []
-    rec = rr.RecordingStream(f"workbench_{experiment}")
+    if connect is not None:
+        sinks.append(connect_sink(connect))
+    if serve:
+        _port_free(VIEWER_PORT)
+        sinks.append(rr.GrpcServerSink())
     if spawn:
         why = spawn_viewer(VIEWER_PORT)
         if why is None:
             sinks.append(rr.GrpcSink(f"rerun+http://127.0.0.1:{VIEWER_PORT}/proxy"))
         else:
             warnings.warn(f"--spawn: {why}; carrying on without it", LiveWarning, stacklevel=2)
-    if connect:
-        if not str(connect).startswith(("rerun://", "rerun+http://", "rerun+https://")):
-            raise WorkbenchError(f"--connect {connect!r}: give a viewer's URL, rerun+http://HOST:PORT/proxy")
-        sinks.append(rr.GrpcSink(str(connect)))
-    if serve:
-        sinks.append(rr.GrpcServerSink())
     if not sinks:
         return None
+    rec = rr.RecordingStream(f"workbench_{experiment}")
     rec.set_sinks(*sinks)
     _properties(rec, experiment, config, seed)
     return rec
+
+
+def viewer_address(url: str) -> tuple[str, int]:
+    """``(host, port)`` of a viewer's URL ``rerun+http://HOST:PORT/proxy`` (also ``rerun://`` and
+    ``rerun+https://``; the port defaults to the SDK's, :data:`VIEWER_PORT`); anything else is a
+    one-line :class:`WorkbenchError` that says what a URL looks like."""
+    from urllib.parse import urlsplit
+
+    shape = "give a viewer's URL, rerun+http://HOST:PORT/proxy"
+    text = str(url).strip()
+    try:
+        parts = urlsplit(text)
+        port = parts.port
+    except ValueError as exc:  # a port that is not a number, or out of 0..65535
+        raise WorkbenchError(f"--connect {url!r}: {exc}; {shape}") from None
+    if parts.scheme not in ("rerun", "rerun+http", "rerun+https"):
+        raise WorkbenchError(f"--connect {url!r}: {shape}")
+    if not parts.hostname:
+        raise WorkbenchError(f"--connect {url!r}: no host; {shape}")
+    if parts.path.rstrip("/") != "/proxy":
+        raise WorkbenchError(f"--connect {url!r}: the path must be /proxy; {shape}")
+    if port == 0:
+        raise WorkbenchError(f"--connect {url!r}: port 0 is no viewer's; {shape}")
+    return parts.hostname, port if port is not None else VIEWER_PORT
+
+
+def connect_sink(url: str, timeout: float = PROBE) -> rr.GrpcSink:
+    """The SDK's sink to the viewer at ``url``, after :func:`viewer_address` and :func:`probe`
+    (the SDK would otherwise wait for an absent viewer: 5 s at the start, 5 s more at the end, its
+    log lines on stderr, the run's last flush timing out); what the SDK refuses of the URL, one line."""
+    host, port = viewer_address(url)
+    why = probe(host, port, timeout)
+    if why is not None:
+        raise WorkbenchError(f"--connect {url}: no viewer there ({why}); start one (rerun --port {port}) "
+                             "or leave --connect out")
+    try:
+        return rr.GrpcSink(str(url).strip())
+    except (RuntimeError, ValueError) as exc:
+        raise WorkbenchError(f"--connect {url!r}: {str(exc).splitlines()[0] if str(exc) else exc}") from None
+
+
+def probe(host: str, port: int, timeout: float = PROBE) -> str | None:
+    """Why ``host:port`` does not accept a TCP connection within ``timeout`` seconds in all (the
+    name's look-up included, which the socket's own timeout does not bound), or ``None`` if it does."""
+    import socket
+    import threading
+    import time
+
+    t0 = time.monotonic()
+    found: list = []
+
+    def look_up() -> None:
+        try:
+            found.append(socket.getaddrinfo(host, port, type=socket.SOCK_STREAM))
+        except (OSError, UnicodeError) as exc:
+            found.append(exc)
+
+    finder = threading.Thread(target=look_up, name="workbench-probe", daemon=True)
+    finder.start()
+    finder.join(timeout)
+    if not found:
+        return f"the name {host!r} was not found within {timeout:g} s"
+    if isinstance(found[0], BaseException):
+        exc = found[0]
+        return f"the name {host!r} is unknown: {getattr(exc, 'strerror', None) or exc}"
+    why = "no address"
+    for family, kind, proto, _, address in found[0]:
+        left = timeout - (time.monotonic() - t0)
+        if left <= 0:
+            return f"no answer within {timeout:g} s"
+        with socket.socket(family, kind, proto) as s:
+            s.settimeout(left)
+            try:
+                s.connect(address)
+                return None
+            except TimeoutError:
+                why = f"no answer within {timeout:g} s"
+            except OSError as exc:
+                why = (exc.strerror or str(exc)).lower()
+    return why
+
+
+def _port_free(port: int) -> None:
+    """A one-line error unless ``--serve`` can listen on ``port`` (every interface, as the SDK
+    does): a port taken by another viewer or run would fail inside the SDK, after the work."""
+    import socket
+
+    with socket.socket() as s:
+        s.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        try:
+            s.bind(("0.0.0.0", port))  # noqa: S104 (the SDK's own default)
+        except OSError as exc:
+            raise WorkbenchError(f"--serve: port {port} is taken ({exc.strerror}; another viewer or run?)") from None
+
+
+def finish_live(rec: rr.RecordingStream, timeout: float = LIVE_FLUSH) -> str | None:
+    """Send what is left to the live viewer, waiting ``timeout`` seconds at most; why it could not
+    (the viewer went away or never answered: one line), or ``None``. A stream that could not
+    finish is :func:`abandon`-ed: the process can still exit."""
+    try:
+        rec.flush(timeout_sec=timeout)
+    except RuntimeError as exc:
+        abandon(rec)
+        return str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+    return None
+
+
+def abandon(rec: rr.RecordingStream) -> None:
+    """Let a live stream whose viewer does not answer go without waiting for it. The SDK (0.41)
+    waits for a gRPC connection that was made but is never answered (a viewer hung or stopped,
+    a port held by something else) for ever: in its exit hook (``rerun.rerun_shutdown``, a flush
+    of every stream without a time limit), in ``disconnect`` and when the stream is dropped. So
+    the stream is kept referenced for the life of the process (never dropped, not even while the
+    interpreter shuts down) and the exit hook is removed; every recording file this process
+    writes is flushed and closed by :func:`recording` itself, so nothing of them waits on that hook."""
+    import atexit
+    import ctypes
+
+    if any(r is rec for r in _ABANDONED):
+        return
+    _ABANDONED.append(rec)
+    try:
+        ctypes.pythonapi.Py_IncRef(ctypes.py_object(rec))  # outlives the interpreter's own clean-up
+    except (AttributeError, OSError):  # not CPython: the list above holds it until the end
+        pass
+    atexit.unregister(rr.rerun_shutdown)
+
+
+_ABANDONED: list[rr.RecordingStream] = []
+"""Live streams let go by :func:`abandon` (kept, never dropped)."""
 
 
 def spawn_viewer(port: int) -> str | None:
