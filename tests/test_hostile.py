@@ -78,6 +78,9 @@ EXAMPLES = [
     ("omni --kappa inf", "--kappa"),
     ("omni --relin-threshold inf", "--relin-threshold"),
     ("omni --image-noise 1e300", "--image-noise"),
+    ("sea --scenario ''", "--scenario '' is empty"),  # a typo, not "the default" (issue 27)
+    ("omni --scenario ''", "--scenario '' is empty"),
+    ("terrain --scenario ' '", "--scenario ' ' is empty"),
 ]
 
 
@@ -103,6 +106,18 @@ def test_outputs_that_cannot_be_a_file(tmp_path, where):
         one_line_error(cli(*args))
     assert not out.exists()
     assert os.path.exists("/dev/null") and not os.path.isfile("/dev/null")
+
+
+@pytest.mark.parametrize("extra", [(), ("--preset", "noise")], ids=["grid", "preset"])
+def test_a_sweep_with_an_empty_scenario_is_one_line(tmp_path, extra):
+    """``--scenario ''`` for a sweep is the same typo (with a preset too, whose scenario it must not
+    quietly become): one line before any work, no sweep folder."""
+    grid = () if extra else ("--grid", "lam=0.9,0.99")
+    err = one_line_error(cli("sweep", "sea", *grid, *extra, "--scenario", "", "--runs", "1", "--out",
+                             str(tmp_path / "sw")))
+    assert "--scenario '' is empty" in err and not (tmp_path / "sw").exists()
+    with pytest.raises(WorkbenchError, match="is empty"):
+        api.configure("sea", "")
 
 
 def test_export_tum_needs_a_folder_name(tmp_path):

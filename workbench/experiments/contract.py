@@ -199,7 +199,7 @@ class Experiment:
         scenario's default). ``config``: a config file's path (TOML or JSON,
         :mod:`.configfile`) or a mapping of settings, between the scenario's defaults and the
         overrides; its ``scenario`` is used where ``scenario`` is not given (else the first).
-        Unknown names are a one-line error."""
+        Unknown names, and an empty scenario (a typo, not a choice), are a one-line error."""
         from workbench.experiments import configfile
 
         names = {f.name for f in dataclasses.fields(self.config_type)}
@@ -210,9 +210,9 @@ class Experiment:
         given = configfile.loads(self, config)
         from_file = given.pop("scenario", None)
         given.update({k: v for k, v in overrides.items() if v is not None})
-        if scenario is not None and not str(scenario).strip():
-            raise WorkbenchError(f"--scenario needs a name; choose one of {', '.join(self.scenarios)}")
-        return self.config_type(scenario=scenario or from_file or next(iter(self.scenarios)), **given)
+        if scenario is None:
+            scenario = from_file if from_file is not None else next(iter(self.scenarios))
+        return self.config_type(scenario=scenario, **given)
 
     def validate(self, cfg: Any) -> Any:
         """``cfg.validate()`` (the experiment's own ranges), then the checks every experiment

@@ -44,7 +44,10 @@ def scenario_fields(config_type: type) -> dict[str, Any]:
 
 def apply_scenario(cfg: Any, scenarios: Mapping[str, Scenario]) -> None:
     """Fill every :func:`by_scenario` field left ``None`` from ``cfg.scenario``'s defaults (or the
-    base). An unknown scenario is a one-line error here, so a config never exists with one."""
+    base). An unknown scenario is a one-line error here, so a config never exists with one; an
+    empty one too (``--scenario ''``: a typo, never "the default")."""
+    if not isinstance(cfg.scenario, str) or not cfg.scenario.strip():
+        raise WorkbenchError(f"--scenario {cfg.scenario!r} is empty; choose one of {', '.join(scenarios)}")
     if cfg.scenario not in scenarios:
         raise WorkbenchError(f"unknown scenario {cfg.scenario!r}; choose one of {', '.join(scenarios)}")
     defaults = scenarios[cfg.scenario].defaults

@@ -49,7 +49,8 @@ def sweep(
     from workbench.experiments import configfile
 
     overrides = configfile.loads(exp, config) if config is not None else {}
-    scenario = scenario or overrides.pop("scenario", None)
+    from_file = overrides.pop("scenario", None)
+    scenario = from_file if scenario is None else scenario
     runs = runs if runs is not None else overrides.pop("runs", 10)
     seed = seed if seed is not None else overrides.pop("seed", 0)
     listed = overrides.pop("estimators", ())
@@ -63,7 +64,7 @@ def sweep(
         p = found[preset]
         spec = {k: tuple(v) for k, v in p.grid.items()}
         overrides.update(p.overrides)
-        scenario = scenario or p.scenario
+        scenario = p.scenario if scenario is None else scenario
         chosen = chosen or p.estimators
     spec.update(grids.parse(exp, grid or []))
     for name in spec:  # the grid sets these in every cell: the file's or the preset's value is not fixed

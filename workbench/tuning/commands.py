@@ -45,9 +45,8 @@ def tune(
 
     exp = get(experiment)
     base = configfile.loads(exp, config) if config is not None else {}
-    scenario = scenario or base.pop("scenario", None)
-    if scenario is not None and not scenario.strip():
-        raise WorkbenchError(f"--scenario needs a name; choose one of {', '.join(exp.scenarios)}")
+    from_file = base.pop("scenario", None)
+    scenario = from_file if scenario is None else scenario
     listed = base.pop("estimators", ())
     for name in ("seed", "runs"):
         base.pop(name, None)

@@ -93,7 +93,8 @@ def grid_values(name: str, values: tuple, scenario: str | None, fixed: dict) -> 
     from workbench.experiments.sea.readers import ais
 
     known = {f.name for f in fields(SeaConfig)}
-    cfg = SeaConfig(scenario=scenario or "paper", **{k: v for k, v in fixed.items() if k in known})
+    cfg = SeaConfig(scenario="paper" if scenario is None else scenario,
+                    **{k: v for k, v in fixed.items() if k in known})
     require(cfg.scenario == "ais", "--grid mmsi=all needs --scenario ais")
     ships, skipped = ais.ship_set(cfg.data, cfg.duration, cfg.ais_max_gap)
     out = tuple(dict.fromkeys([v for v in values if v != ALL_SHIPS] + ships))
