@@ -79,7 +79,8 @@ def test_no_import_cycles():
 BELOW = {"workbench.estimation": ("workbench.estimation", "workbench.errors"),
          "workbench.recording": ("workbench.recording", "workbench.errors", "workbench.paths", "workbench.version"),
          "workbench.experiments.estimator": ("workbench.experiments.estimator", "workbench.loading", "workbench.errors",
-                                             "=workbench.experiments"),
+                                             "=workbench.experiments", "=workbench.experiments.deadline"),
+         "workbench.experiments.deadline": ("=workbench.experiments.deadline", "workbench.errors"),
          "workbench.experiments.metric": ("workbench.experiments.metric", "workbench.loading", "workbench.errors",
                                           "workbench.estimation")}
 """Layers and what each may import: the math, the drawing primitives, the estimator side of the

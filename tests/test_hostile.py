@@ -135,7 +135,8 @@ FLOATS = st.one_of(st.floats(allow_nan=True, allow_infinity=True), st.sampled_fr
 INTS = st.one_of(st.integers(-2**70, 2**70), st.sampled_from([0, -1, 1, 2**31, 2**53 + 1, 2**63, -2**63]))
 TEXT = st.one_of(st.text(max_size=40), st.sampled_from(
     ["", " ", "0", "-1", "nan", "inf", "1e300", "0x0", "1x1", "99999x99999", "all", "x", "\x00", "é" * 5]))
-OPTIONS = [(exp, opt) for exp in all_experiments() for opt in exp.options if opt.switch is None]
+# every option that sets a config field: the experiment's own and the common ones (--estimator-timeout)
+OPTIONS = [(exp, opt) for exp in all_experiments() for opt in exp.settable if opt.switch is None]
 
 
 def _strategy(opt):
@@ -543,7 +544,7 @@ def test_generated_values_in_real_runs(exp, tmp_path_factory):
     """Any one option set to a generated value (the run kept small): exit 0, 2 (one line) or 3
     (an estimator failed, named); never a traceback or an internal error, never a temporary file
     left, and metrics that are strict JSON whenever they are written."""
-    options = [o for o in exp.options if o.switch is None and o.type is not Path and o.field != "scenario"]
+    options = [o for o in exp.settable if o.switch is None and o.type is not Path and o.field != "scenario"]
 
     @settings(max_examples=25, deadline=None, database=None, derandomize=True,
               suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])

@@ -73,6 +73,13 @@ PLUGIN = textwrap.dedent('''
 
     def not_an_estimate(data, cfg):
         return {"position": data.target[:, :2]}
+
+
+    def sleeps_forever(data, cfg):
+        import time
+
+        while True:
+            time.sleep(3600)
 ''')
 SEA = ("--duration", "20")
 OMNI = ("--duration", "40")
@@ -233,3 +240,85 @@ def test_a_dataset_and_estimators_by_hand():
     est, failed = exp.estimate(data, cfg, ["odometry", "ekf"])
     assert not failed and list(est) == ["odometry", "ekf"] and len(est["ekf"].steps) == len(data.t)
     assert all(e.seconds > 0 for e in est.values())
+
+
+# --- an estimator that never returns (issue 27 item 3) ----------------------------------------------
+
+def test_an_estimator_that_never_returns_costs_one_estimator(tmp_path, plugin):
+    """``--estimator-timeout 2`` and a plugin asleep for ever, over 4 runs on two processes: the
+    run ends in bounded time (2 s once: the workers forked after run 0 know it timed out), exit 3,
+    one line naming it and saying it timed out; the others' metrics and recording are written."""
+    import time
+
+    t0 = time.monotonic()
+    r, out, stats = _run(tmp_path, "sea", "--runs", "4", "--jobs", "2", *SEA, "--estimator-timeout", "2",
+                         "--estimators", f"geometric,ekf,{plugin}:sleeps_forever")
+    took = time.monotonic() - t0
+    assert r.returncode == 3, r.stderr
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and "'sleeps_forever'" in lines[0] and "timed out after 2 s" in lines[0], r.stderr
+    assert set(stats["estimators"]) == {"geometric", "ekf"} and "timed out" in stats["failed"]["sleeps_forever"]
+    assert stats["runs"] == 4 and stats["config"]["estimator_timeout"] == 2.0
+    assert readback.row_counts(out)["/map/ekf/position"] == stats["steps"]
+    assert took < 60, f"{took:.0f} s"  # ~6 s here; without the limit: never
+
+
+def test_a_timeout_stops_a_python_loop_and_frees_its_thread():
+    """A filter stuck in a Python loop (catching ``Exception`` too) is stopped at the limit, and
+    its thread ends soon after (it no longer takes a core); a fast one is untouched."""
+    import threading
+    import time
+
+    def spins(data, cfg):
+        while True:
+            try:
+                sum(range(1000))
+            except Exception:
+                pass
+
+    from workbench.experiments.deadline import EstimatorTimedOut, call_with_timeout
+
+    t0 = time.monotonic()
+    with pytest.raises(EstimatorTimedOut, match="timed out after 0.5 s"):
+        call_with_timeout(spins, (None, None), 0.5, "spins")
+    assert time.monotonic() - t0 < 3
+    alive = lambda: [t for t in threading.enumerate() if t.name == "workbench estimator spins"]  # noqa: E731
+    deadline = time.monotonic() + 5
+    while alive() and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert not alive(), "the abandoned loop still runs"
+    assert call_with_timeout(lambda data, cfg: 42, (None, None), 5.0, "quick") == 42
+    assert call_with_timeout(lambda data, cfg: 42, (None, None), 0.0, "quick") == 42  # 0: called directly
+    with pytest.raises(ZeroDivisionError):  # what an estimator raises comes through as it was
+        call_with_timeout(lambda data, cfg: 1 / 0, (None, None), 5.0, "bad")
+
+
+@pytest.mark.parametrize("given, limit", [("2.5", 2.5), ("0", 0.0), ("none", 0.0), ("OFF", 0.0), ("inf", 0.0)])
+def test_the_timeout_setting(given, limit):
+    from workbench.sweeps import grid
+
+    exp = get("sea")
+    assert grid.parse_value(exp, grid.resolve_key(exp, "estimator-timeout"), given) == limit
+    assert workbench.configure("sea").estimator_timeout == 600.0  # the default
+    assert workbench.configure("sea", estimator_timeout=0).estimator_timeout == 0.0
+
+
+@pytest.mark.parametrize("bad", [-1.0, float("nan"), "soon"])
+def test_a_bad_timeout_is_one_line(bad):
+    with pytest.raises(WorkbenchError, match="--estimator-timeout"):
+        workbench.configure("sea", estimator_timeout=bad)
+
+
+def test_a_sweep_over_an_estimator_that_never_returns_ends(tmp_path, plugin):
+    """A sweep whose cells each have an estimator asleep for ever: its worker processes pay the
+    limit once per cell and go on (not poisoned), the sweep ends, the others' rows are there."""
+    import pyarrow.parquet as pq
+
+    r = wb("sweep", "sea", "--grid", "lam=0.9,0.99", "--set", "duration=20", "--set", "estimator-timeout=1",
+           "--estimators", f"geometric,{plugin}:sleeps_forever", "--runs", "4", "--jobs", "2",
+           "--out", str(tmp_path / "sw"), timeout=300)
+    assert r.returncode == 0, r.stderr
+    rows = pq.read_table(tmp_path / "sw" / "tasks").to_pandas()
+    failed = rows[rows["failed"]]
+    assert set(failed["estimator"]) == {"sleeps_forever"} and failed["unit"].str.contains("timed out").all()
+    assert len(set(rows[(rows["estimator"] == "geometric") & ~rows["failed"]]["run"])) == 4

@@ -147,12 +147,12 @@ def command(exp, friendly: Callable[[Callable], Callable]) -> Callable:
         added = given.pop("add_metrics")
         overrides = {"seed": given.pop("seed"), "runs": given.pop("runs"), "tune_noise": given.pop("tune_noise"),
                      "add_metrics": split_list(added) if added is not None else None}
-        for opt in exp.options:
+        for opt in exp.settable:
             value = opt.value(given.pop(opt.field))
             overrides.update({f: value for f in opt.fields if value is not None})
         execute(exp, extras=extras, **shared, **overrides)
 
-    params = _shared(exp) + [_option(o, exp) for o in exp.options + exp.extras]
+    params = _shared(exp) + [_option(o, exp) for o in exp.settable + exp.extras]
     wrapped = friendly(run)
     wrapped.__signature__ = inspect.Signature(params)
     wrapped.__annotations__ = {p.name: p.annotation for p in params}

@@ -50,7 +50,7 @@ from typing import Any
 from workbench.errors import WorkbenchError
 from workbench.experiments import figures, markdown, metric, truthfree
 from workbench.experiments.estimator import Estimator, RunContext, estimate_all, resolve
-from workbench.experiments.settings import Option, Scenario, config_json
+from workbench.experiments.settings import COMMON, Option, Scenario, config_json
 
 GENERIC = ("evaluate", "record")
 """Roles an experiment may leave out: :mod:`.generic` stands in (``report`` too, by :meth:`Experiment.table`)."""
@@ -185,6 +185,12 @@ class Experiment:
         return getattr(module, name, default)
 
     @property
+    def settable(self) -> tuple[Option, ...]:
+        """Every option that sets a config field: the experiment's own, then those every
+        experiment has (:data:`~.settings.COMMON`: ``--estimator-timeout``)."""
+        return (*self.options, *COMMON)
+
+    @property
     def estimators(self) -> dict[str, Estimator]:
         """The built-in estimator table, name -> :class:`Estimator`, in the order they run."""
         return self.role("estimators").TABLE
@@ -220,7 +226,7 @@ class Experiment:
         one-line :class:`~workbench.errors.WorkbenchError` naming the flag."""
         from workbench.experiments import limits
 
-        flags = {f: opt.flags[0] for opt in (*self.options, *self.extras) for f in opt.fields}
+        flags = {f: opt.flags[0] for opt in (*self.settable, *self.extras) for f in opt.fields}
         limits.check_values(cfg, flags)  # first: the experiment's own checks may compute with them
         cfg.validate()
         limits.check_memory(cfg)

@@ -35,6 +35,7 @@ import numpy as np
 
 from workbench import loading
 from workbench.errors import WorkbenchError
+from workbench.experiments.deadline import EstimatorTimedOut, call_with_timeout
 
 Color = tuple[int, int, int]
 GROUP = "workbench.estimators"
@@ -170,29 +171,57 @@ def estimate_all(estimators: Iterable[Estimator], data: Any, cfg: Any, ctx: RunC
     """Every estimator on the same data, in order, each timed and checked.
 
     Returns the estimates by name and the failures (name -> one line): an estimator that
-    raises or whose estimate fails ``check`` is left out, the others go on. Each estimate's
-    ``seconds`` is its own time plus that of the shared products it used
-    (:meth:`RunContext.shared`). ``WORKBENCH_DEBUG=1`` re-raises instead.
+    raises, whose estimate fails ``check``, or that takes longer than ``cfg.estimator_timeout``
+    seconds (:func:`call_with_timeout`; 0 or absent: no limit) is left out, the others go on. One
+    that timed out is not called again on the same config in this process (:data:`_TIMED_OUT`):
+    its later runs fail at once. Each estimate's ``seconds`` is its own time plus that of the
+    shared products it used (:meth:`RunContext.shared`). ``WORKBENCH_DEBUG=1`` re-raises instead.
     """
     out: dict[str, Any] = {}
     failures: dict[str, str] = {}
+    limit = float(getattr(cfg, "estimator_timeout", 0.0) or 0.0)
+    this = _config_key(cfg) if limit else None
     for est in estimators:
-        ctx._fresh, ctx._used = 0.0, set()
+        key = (est.spec, this)
+        if limit and key in _TIMED_OUT:
+            failures[est.name] = f"timed out in an earlier run (after {_TIMED_OUT[key]:g} s); not run again"
+            continue
+        own_ctx = dataclasses.replace(ctx, _fresh=0.0, _used=set())  # its accounts; the shared products are one
         t0 = time.perf_counter()
         try:
-            result = est(data, cfg, ctx)
+            result = call_with_timeout(est, (data, cfg, own_ctx), limit, est.name)
             result = check(result, data, cfg, est)
         except KeyboardInterrupt:
             raise
+        except EstimatorTimedOut as exc:
+            if os.environ.get("WORKBENCH_DEBUG"):
+                raise
+            _TIMED_OUT[key] = limit
+            ctx.cache = dict(ctx.cache)  # what the abandoned call may still add goes to a dict no one reads
+            failures[est.name] = one_line(exc)
+            continue
         except Exception as exc:
             if os.environ.get("WORKBENCH_DEBUG"):
                 raise
             failures[est.name] = one_line(exc)
             continue
-        own = time.perf_counter() - t0 - ctx._fresh
-        result.seconds = own + sum(ctx.cache[k][1] for k in ctx._used)
+        own = time.perf_counter() - t0 - own_ctx._fresh
+        result.seconds = own + sum(ctx.cache[k][1] for k in own_ctx._used)
         out[est.name] = result
     return out, failures
+
+
+_TIMED_OUT: dict[tuple, float] = {}
+"""(estimator spec, config key) -> the limit it went past, in this process: not called again.
+A Monte Carlo worker forked after run 0 inherits it, so it does not wait again either."""
+
+
+def _config_key(cfg: Any) -> Any:
+    """What tells one config from another for :data:`_TIMED_OUT`: every field but ``runs`` (a
+    sweep's tasks of one cell differ only there), or the object itself where it is no dataclass."""
+    if not dataclasses.is_dataclass(cfg):
+        return id(cfg)
+    return tuple((f.name, repr(getattr(cfg, f.name))) for f in dataclasses.fields(cfg) if f.name != "runs")
 
 
 def one_line(exc: BaseException) -> str:

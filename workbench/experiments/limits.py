@@ -6,7 +6,7 @@ size the machine cannot hold.
   in its own units (UTM coordinates are ~1e7 m; 1e300 is a typo), and zero or at least
   :data:`MIN_MAGNITUDE` (a denormal time step overflows the step count);
 * whole numbers within :data:`MAX_INT`; ``--seed`` within 64 bits (the recording stores it so),
-  ``--runs`` at most :data:`MAX_RUNS`;
+  ``--runs`` at most :data:`MAX_RUNS`; ``--estimator-timeout`` a number of seconds, at least 0;
 * the memory a run will need (``cfg.memory_bytes()``, each experiment's estimate from what
   sizes its arrays: steps, keyframes, DEM cells, pixels, and the summaries of every run the
   parent holds) at most :func:`memory_limit`, refused before any work.
@@ -67,6 +67,9 @@ def check_values(cfg: Any, flags: Mapping[str, str]) -> None:
     seed, runs = getattr(cfg, "seed", 0), getattr(cfg, "runs", 1)
     require(isinstance(seed, int) and 0 <= seed <= MAX_SEED, f"--seed must be in 0..2**63-1, got {seed}")
     require(isinstance(runs, int) and 1 <= runs <= MAX_RUNS, f"--runs must be in 1..{MAX_RUNS}, got {runs}")
+    limit = getattr(cfg, "estimator_timeout", 0.0)
+    require(isinstance(limit, (int, float)) and not isinstance(limit, bool) and limit >= 0,
+            f"--estimator-timeout must be seconds, at least 0 (0: no limit), got {limit!r}")
 
 
 def check_memory(cfg: Any) -> None:

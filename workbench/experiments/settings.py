@@ -116,6 +116,29 @@ def config_json(cfg: Any) -> dict:
     return {f.name: plain(getattr(cfg, f.name)) for f in dataclasses.fields(cfg)}
 
 
+ESTIMATOR_TIMEOUT = 600.0
+"""The default of ``--estimator-timeout`` (s). Measured on the default scenarios (2 cores): the
+slowest built-in per run is sea's isam2, 0.25 s; omni's gtsam-batch, 14 s idle and up to 33 s with
+the machine loaded 4x over; terrain's recurrent search with the search it shares, 19 s on a first
+run that compiles its Numba kernel (6 s once cached). 600 s is 32x the slowest idle and 18x it
+loaded, room for longer scenarios, and still ends a hung estimator within minutes."""
+
+
+def parse_timeout(text: Any) -> float:
+    """``--estimator-timeout``: seconds (a positive number), or ``0`` / ``none`` / ``off`` /
+    ``inf``: no limit (stored as 0)."""
+    low = str(text).strip().lower()
+    if low in ("none", "off", "no", "never", "inf", "infinity", "0"):
+        return 0.0
+    try:
+        value = float(low)
+    except ValueError:
+        raise ValueError(f"seconds, or none for no limit; got {text!r}") from None
+    if value != value or value < 0:  # NaN, negative
+        raise ValueError(f"seconds (at least 0; 0 or none: no limit), got {text!r}")
+    return 0.0 if value == 0 or value == float("inf") else value
+
+
 @dataclass
 class Config:
     """What every experiment's config dataclass inherits: the fields every experiment has (a
@@ -124,7 +147,9 @@ class Config:
     ``estimators``: the selection (empty: the experiment's defaults); ``add_metrics``: metric
     plugins (``module:function`` / ``file.py:function`` specs) beside the experiment's own;
     ``tune_noise``: before the runs, the noise the data identify estimated on run 0's data by a
-    filter's likelihood (:mod:`workbench.tuning.selftune`) and told to every estimator."""
+    filter's likelihood (:mod:`workbench.tuning.selftune`) and told to every estimator;
+    ``estimator_timeout``: the seconds one estimator may take on one run's data before it is
+    stopped and left out like one that raised (0: no limit; :data:`ESTIMATOR_TIMEOUT`)."""
 
     scenario: str = ""
     seed: int = 0
@@ -132,6 +157,7 @@ class Config:
     estimators: tuple[str, ...] = ()
     add_metrics: tuple[str, ...] = ()
     tune_noise: bool = False  # estimate the noise the data identify by a filter's likelihood first (tuning.selftune)
+    estimator_timeout: float = ESTIMATOR_TIMEOUT
 
     def to_json(self) -> dict:
         return config_json(self)
@@ -184,3 +210,12 @@ class Option:
             return self.parse(given)
         except (ValueError, TypeError) as exc:
             raise WorkbenchError(f"{self.flags[0]}: {exc}") from None
+
+
+COMMON: tuple[Option, ...] = (
+    Option("estimator_timeout", "Seconds one estimator may take on one run's data; past it, it is stopped, named and "
+           "left out like one that raised (exit 3; its thread is abandoned). 0 or none: no limit.", str,
+           parse=parse_timeout),
+)
+"""Options of every experiment's config fields beyond its own (:attr:`Experiment.settable`): on
+every experiment command, in sweeps' ``--grid`` / ``--set``, checked by ``validate``."""

@@ -34,7 +34,7 @@ def resolve_key(exp: Experiment, key: str) -> str:
     """A config field's name from a key given as the field or as its option's flag."""
     key = key.strip()
     flags = {}
-    for opt in exp.options:
+    for opt in exp.settable:
         for flag in opt.flags:
             for name in flag.split("/"):
                 flags[name.lstrip("-")] = opt.fields[0] if len(opt.fields) == 1 else opt.field
@@ -54,7 +54,7 @@ def parse_value(exp: Experiment, field: str, text: str) -> Any:
         if text not in exp.scenarios:
             raise WorkbenchError(f"--grid scenario={text}: choose from {', '.join(exp.scenarios)}")
         return text
-    for opt in exp.options:
+    for opt in exp.settable:
         if field in (opt.field, *opt.fields) and opt.parse is not None:
             return opt.value(text)
     default = _field_types(exp).get(_multi(exp).get(field, (field,))[0], 0)
@@ -110,7 +110,7 @@ def cells(grid: Mapping[str, tuple]) -> list[dict[str, Any]]:
 
 def _multi(exp: Experiment) -> dict[str, tuple[str, ...]]:
     """Options that set several fields at once (sea's ``order``: both AR orders)."""
-    return {opt.field: opt.fields for opt in exp.options if len(opt.fields) > 1}
+    return {opt.field: opt.fields for opt in exp.settable if len(opt.fields) > 1}
 
 
 def expand(exp: Experiment, cell: Mapping[str, Any]) -> dict[str, Any]:
