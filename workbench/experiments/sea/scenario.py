@@ -41,6 +41,8 @@ class SeaData:
     impulse: np.ndarray | None = None  # (T, 2) the impulse noise added to alpha, beta (impulse scenario)
     ship: int | None = None            # ais: the ship's MMSI
     repairs: dict | None = None        # ais: what reading the real files repaired (readers.ais.AisFile.repairs, uav)
+    velocity_known: bool = True        # the platform's velocity is its own (navigation), not the fixes' gradient:
+                                       # its path is known up to its start (:mod:`.observer`)
 
     @property
     def steps(self) -> int:

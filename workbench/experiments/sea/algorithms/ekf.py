@@ -29,23 +29,27 @@ import numpy as np
 from workbench.estimation import kalman
 from workbench.estimation.angles import wrap
 from workbench.estimation.consistency import Innovations
-from workbench.experiments.sea import geometry
+from workbench.experiments.sea import geometry, observer
 from workbench.experiments.sea.config import SeaConfig
-from workbench.experiments.sea.estimate import Estimate, from_positions
+from workbench.experiments.sea.estimate import Estimate
 from workbench.experiments.sea.scenario import SeaData
 
 
-def initial_state(data: SeaData, k: int, prior_speed: float) -> tuple[np.ndarray, np.ndarray]:
-    """Position from (3)-(5) at step k with covariance ``G R G'``; zero velocity."""
+def initial_state(data: SeaData, k: int, prior_speed: float,
+                  cam: observer.Camera | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Position from (3)-(5) at step k, seen from the camera at ``cam.path[k]`` (default
+    :func:`.observer.camera`), with covariance ``G R G'`` (plus the fix's folded variance where the
+    camera is not held as an offset); zero velocity."""
+    cam = observer.camera(data) if cam is None else cam
     a, b = data.alpha_meas[k], data.beta_meas[k]
-    xy, d = geometry.position(a, b, data.observer_meas[k], data.course[k], data.height)
+    xy, d = geometry.position(a, b, cam.path[k], data.course[k], data.height)
     bearing = a + data.course[k]
     u = np.array([np.cos(bearing), np.sin(bearing)])
     dd_db = -data.height / np.sin(b) ** 2
     G = np.stack([d * np.array([-u[1], u[0]]), dd_db * u], axis=1)  # d xy / d (alpha, beta)
     R = np.diag([data.sigma_alpha**2, data.sigma_beta**2])
     P = np.zeros((4, 4))
-    P[:2, :2] = G @ R @ G.T + data.sigma_observer**2 * np.eye(2)
+    P[:2, :2] = G @ R @ G.T + cam.fold * np.eye(2)
     P[2:, 2:] = prior_speed**2 * np.eye(2)
     return np.concatenate([xy, [0.0, 0.0]]), P
 
@@ -61,21 +65,22 @@ def estimate(data: SeaData, cfg: SeaConfig) -> Estimate:
     X = np.full((T, 4), np.nan)
     Ps = np.full((T, 4, 4), np.nan)
     rows: list[tuple[float, np.ndarray, np.ndarray]] = []  # the innovations: (t, nu, S); NaN where gated
+    cam = observer.camera(data)
     x = P = None
     for k in range(T):
         if x is not None:
             x, P = kalman.predict(x, P, F, Q)
         if data.seen[k]:
             if x is None:
-                x, P = initial_state(data, k, cfg.prior_speed)
+                x, P = initial_state(data, k, cfg.prior_speed, cam)
             else:
-                o = data.observer_meas[k]
+                o = cam.path[k]
                 h = np.array(geometry.angles(x[:2], o, data.course[k], data.height))
                 J = geometry.angle_jacobian(x[:2], o, data.height)
                 H = np.zeros((2, 4))
                 H[:, :2] = J
                 R = geometry.effective_noise(x[:2], o, data.height, data.sigma_alpha,
-                                             data.sigma_beta, data.sigma_observer, jacobian=J)
+                                             data.sigma_beta, np.sqrt(cam.fold), jacobian=J)
                 nu = np.array([wrap(data.alpha_meas[k] - h[0]), data.beta_meas[k] - h[1]])
                 S = H @ P @ H.T + R
                 if not gated or nu @ np.linalg.solve(S, nu) <= gate:
@@ -91,5 +96,5 @@ def estimate(data: SeaData, cfg: SeaConfig) -> Estimate:
     forecast = np.einsum("lij,tj->tli", Fl, X)
     innovations = Innovations(np.array([r[0] for r in rows]), np.array([r[1] for r in rows]).reshape(-1, 2),
                               np.array([r[2] for r in rows]).reshape(-1, 2, 2))
-    return from_positions("ekf", data, X[:, :2].copy(), covariance=Ps[:, :2, :2].copy(),
-                          state_cov=Ps, velocity=X[:, 2:].copy(), forecast=forecast, innovations=innovations)
+    return observer.relative("ekf", data, cam, X[:, :2].copy(), np.arange(T), covariance=Ps[:, :2, :2].copy(),
+                             state_cov=Ps, velocity=X[:, 2:].copy(), forecast=forecast, innovations=innovations)

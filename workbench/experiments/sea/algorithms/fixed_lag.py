@@ -23,9 +23,10 @@ import numpy as np
 from gtsam.symbol_shorthand import P, V
 
 from workbench.experiments.estimator import RunContext, estimator
+from workbench.experiments.sea import observer
 from workbench.experiments.sea.algorithms import smoother
 from workbench.experiments.sea.config import SeaConfig
-from workbench.experiments.sea.estimate import Estimate, from_positions
+from workbench.experiments.sea.estimate import Estimate
 from workbench.experiments.sea.scenario import SeaData
 
 LAG = 5.0
@@ -42,7 +43,7 @@ def run(data: SeaData, cfg: SeaConfig, lag: float = LAG, factors: smoother.Facto
     fls = gtsam.IncrementalFixedLagSmoother((n + 0.5) * dt, smoother.isam2_params())
     X, Vel = np.full((T, 2), np.nan), np.full((T, 2), np.nan)
     cov, state_cov = np.full((T, 2, 2), np.nan), np.full((T, 4, 4), np.nan)
-    pos0, _ = smoother._initial_track(data)
+    pos0, _ = factors.initial
     p = v = None
     first = None
 
@@ -66,7 +67,10 @@ def run(data: SeaData, cfg: SeaConfig, lag: float = LAG, factors: smoother.Facto
     if first is not None:
         for j in range(max(first, T - n), T):
             read(j)
-    return from_positions(name, data, X, velocity=Vel, covariance=cov, state_cov=state_cov)
+    # step j is read at step j + n (the last n at the end): it has seen the fixes up to there
+    upto = np.minimum(np.arange(T) + n, T - 1)
+    return observer.relative(name, data, factors.observer, X, upto, velocity=Vel, covariance=cov,
+                             state_cov=state_cov)
 
 
 def with_lag(lag: float):

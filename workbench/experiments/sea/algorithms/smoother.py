@@ -29,9 +29,9 @@ import numpy as np
 from gtsam.symbol_shorthand import P, V
 
 from workbench.estimation import kalman
-from workbench.experiments.sea import geometry
+from workbench.experiments.sea import geometry, observer
 from workbench.experiments.sea.config import SeaConfig
-from workbench.experiments.sea.estimate import Estimate, from_positions
+from workbench.experiments.sea.estimate import Estimate
 from workbench.experiments.sea.scenario import SeaData
 
 _CAMERA_IN_BODY = np.array([[0.0, 0.0, 1.0], [-1.0, 0.0, 0.0], [0.0, -1.0, 0.0]])
@@ -78,37 +78,40 @@ class MotionModel:
         return gtsam.LinearContainerFactor(gtsam.JacobianFactor(gtsam.HessianFactor(parts)), lin)
 
 
-def camera_noise(data: SeaData) -> np.ndarray:
+def camera_noise(data: SeaData, cam: observer.Camera | None = None) -> np.ndarray:
     """Covariance ``(T, 2, 2)`` of each step's measurement ``(0, tan beta~)``.
 
-    The angle noise with the observer's folded in (:func:`geometry.effective_noise`) at the
-    geometric position (3)-(5) (elevation floored at 3 sigma_beta), mapped through
-    ``d(u, v)/d(alpha, beta) = diag(-1, 1/cos^2 beta~)``; NaN where the object is unseen.
+    The angle noise ``diag(sa^2, sb^2)`` (with the camera's folded in where it is not held as an
+    offset, :attr:`.observer.Camera.fold`, at the geometric position (3)-(5), elevation floored
+    at 3 sigma_beta), mapped through ``d(u, v)/d(alpha, beta) = diag(-1, 1/cos^2 beta~)``; NaN
+    where the object is unseen.
     """
+    cam = observer.camera(data) if cam is None else cam
     b = data.beta_meas
     floor = np.maximum(b, 3.0 * data.sigma_beta)
-    guess, _ = geometry.position(data.alpha_meas, floor, data.observer_meas, data.course,
-                                 data.height)
-    R = geometry.effective_noise(guess, data.observer_meas, data.height, data.sigma_alpha,
-                                 data.sigma_beta, data.sigma_observer)
+    guess, _ = geometry.position(data.alpha_meas, floor, cam.path, data.course, data.height)
+    R = geometry.effective_noise(guess, cam.path, data.height, data.sigma_alpha,
+                                 data.sigma_beta, np.sqrt(cam.fold))
     d = np.stack([np.full_like(b, -1.0), 1.0 / np.cos(b) ** 2], axis=-1)
     return d[:, :, None] * R * d[:, None, :]
 
 
-def camera_factor(data: SeaData, k: int, robust: bool,
-                  cov: np.ndarray | None = None) -> gtsam.NonlinearFactor:
-    """The azimuth/elevation measurement of step k as a fixed-camera projection factor.
+def camera_factor(data: SeaData, k: int, robust: bool, cov: np.ndarray | None = None,
+                  cam: observer.Camera | None = None) -> gtsam.NonlinearFactor:
+    """The azimuth/elevation measurement of step k as a fixed-camera projection factor, the
+    camera at ``cam.path[k]`` (:func:`.observer.camera`, computed here if not given).
 
     ``cov`` is the measurement covariance (:func:`camera_noise`), computed here if not given.
     """
+    cam = observer.camera(data) if cam is None else cam
     a, b = data.alpha_meas[k], data.beta_meas[k]
-    o = data.observer_meas[k]
+    o = cam.path[k]
     yaw = data.course[k] + a
     rot = gtsam.Rot3(gtsam.Rot3.Yaw(yaw).matrix() @ _CAMERA_IN_BODY)
     cam = gtsam.PinholeCameraCal3_S2(gtsam.Pose3(rot, np.array([o[0], o[1], data.height])),
                                      _UNIT_K)
     if cov is None:
-        cov = camera_noise(data)[k]
+        cov = camera_noise(data, cam)[k]
     noise = gtsam.noiseModel.Gaussian.Covariance(cov)
     if robust:
         noise = gtsam.noiseModel.Robust.Create(gtsam.noiseModel.mEstimator.Huber.Create(1.345),
@@ -127,10 +130,11 @@ def _priors(cfg: SeaConfig, k: int) -> list[gtsam.NonlinearFactor]:
     ]
 
 
-def _initial_track(data: SeaData) -> tuple[np.ndarray, np.ndarray]:
-    """Positions and velocities to start LM: geometric where seen, a fitted line elsewhere."""
+def _initial_track(data: SeaData, cam: observer.Camera) -> tuple[np.ndarray, np.ndarray]:
+    """Positions and velocities to start LM, in the camera's frame (``cam.path``): geometric
+    where seen, a fitted line elsewhere."""
     beta = np.maximum(data.beta_meas, 3.0 * data.sigma_beta)
-    xy, _ = geometry.position(data.alpha_meas, beta, data.observer_meas, data.course, data.height)
+    xy, _ = geometry.position(data.alpha_meas, beta, cam.path, data.course, data.height)
     ok = np.isfinite(xy[:, 0])
     A = np.stack([np.ones(ok.sum()), data.t[ok]], axis=1)
     coef, *_ = np.linalg.lstsq(A, xy[ok], rcond=None)
@@ -140,14 +144,18 @@ def _initial_track(data: SeaData) -> tuple[np.ndarray, np.ndarray]:
 
 
 class FactorSet:
-    """The run's factors, built once and shared by ``gtsam`` and ``isam2`` (same data, same graph)."""
+    """The run's factors, built once and shared by ``gtsam``, ``isam2`` and the fixed-lag smoother
+    (same data, same graph), in the frame of the camera's model ``observer`` (:mod:`.observer`),
+    and the track to start from (``initial``: positions, velocities)."""
 
     def __init__(self, data: SeaData, cfg: SeaConfig):
+        self.observer = observer.camera(data)
         self.motion = MotionModel(data.dt, data.sigma_acc)
-        cov = camera_noise(data)
-        self.camera = [camera_factor(data, k, cfg.robust, cov[k]) if data.seen[k] else None
+        cov = camera_noise(data, self.observer)
+        self.camera = [camera_factor(data, k, cfg.robust, cov[k], self.observer) if data.seen[k] else None
                        for k in range(data.steps)]
         self.moves = [self.motion.factor(k) for k in range(data.steps - 1)]
+        self.initial = _initial_track(data, self.observer)
 
 
 def _point(xy: np.ndarray) -> np.ndarray:
@@ -163,7 +171,7 @@ def batch(data: SeaData, cfg: SeaConfig, covariances: bool = False,
     init = gtsam.Values()
     for f in _priors(cfg, 0):
         graph.add(f)
-    pos, vel = _initial_track(data)
+    pos, vel = factors.initial
     for k in range(T):
         if factors.camera[k] is not None:
             graph.add(factors.camera[k])
@@ -185,7 +193,8 @@ def batch(data: SeaData, cfg: SeaConfig, covariances: bool = False,
         isam = gtsam.ISAM2(qr)
         isam.update(graph, result)
         cov = np.array([isam.marginalCovariance(P(k))[:2, :2] for k in range(T)])
-    return from_positions("gtsam", data, X, velocity=Vel, covariance=cov)
+    # every step has seen every fix: the offset from all of them
+    return observer.relative("gtsam", data, factors.observer, X, T - 1, velocity=Vel, covariance=cov)
 
 
 RELINEARIZE = (1.0, 1.0)
@@ -255,7 +264,7 @@ def incremental(data: SeaData, cfg: SeaConfig, covariances: bool = False,
     X = np.full((T, 2), np.nan)
     Vel = np.full((T, 2), np.nan)
     cov = np.full((T, 2, 2), np.nan) if covariances else None
-    pos0, _ = _initial_track(data)
+    pos0, _ = factors.initial
     p = v = None
     started = False
     for k in range(T):
@@ -271,4 +280,5 @@ def incremental(data: SeaData, cfg: SeaConfig, covariances: bool = False,
             cov[k] = isam.marginalCovariance(P(k))[:2, :2]
     steps = np.arange(1, L + 1)[None, :, None] * dt
     forecast = X[:, None, :] + steps * Vel[:, None, :]
-    return from_positions("isam2", data, X, velocity=Vel, covariance=cov, forecast=forecast)
+    return observer.relative("isam2", data, factors.observer, X, np.arange(T), velocity=Vel, covariance=cov,
+                             forecast=forecast)

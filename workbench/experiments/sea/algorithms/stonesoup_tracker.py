@@ -10,10 +10,11 @@ course (``rotation_offset``), and its Extended or Unscented predictor and update
 workbench only converts: the paper's angles are Stone Soup's ``(elevation, bearing) = (-beta,
 alpha)`` (elevation is up, beta is down), the horizontal acceleration noise enters as the
 continuous model's ``q = sigma_acc^2 dt`` (the same velocity increment per step as the
-simulation's discrete model), and each detection's noise is the camera's with the observer's
-position noise folded in at the prediction (:func:`geometry.effective_noise`, as the
-workbench's EKF does). The first seen step starts the track from (3)-(5)
-(:func:`ekf.initial_state`).
+simulation's discrete model), and the camera is the workbench's EKF's (:mod:`.observer`): the
+sensor rides the platform's dead-reckoned path and the offset its fixes give is added to the
+track (where the platform's velocity is not known, the sensor sits at each fix and its noise is
+folded into the detection's at the prediction, :func:`geometry.effective_noise`). The first seen
+step starts the track from (3)-(5) (:func:`ekf.initial_state`).
 """
 
 from __future__ import annotations
@@ -30,10 +31,10 @@ from stonesoup.types.state import GaussianState
 from stonesoup.updater.kalman import ExtendedKalmanUpdater, UnscentedKalmanUpdater
 
 from workbench.experiments.estimator import estimator
-from workbench.experiments.sea import geometry
+from workbench.experiments.sea import geometry, observer
 from workbench.experiments.sea.algorithms import ekf
 from workbench.experiments.sea.config import SeaConfig
-from workbench.experiments.sea.estimate import Estimate, from_positions
+from workbench.experiments.sea.estimate import Estimate
 from workbench.experiments.sea.scenario import SeaData
 
 XY = [0, 2]          # x, y in Stone Soup's state order
@@ -53,6 +54,7 @@ def track(data: SeaData, cfg: SeaConfig, kind: str = "ukf", name: str = "stoneso
     start = datetime.datetime(2016, 1, 12)
     X = np.full((T, 4), np.nan)
     P = np.full((T, 4, 4), np.nan)
+    cam = observer.camera(data)
     state = None
     for k in range(T):
         when = start + datetime.timedelta(seconds=float(data.t[k]))
@@ -60,15 +62,15 @@ def track(data: SeaData, cfg: SeaConfig, kind: str = "ukf", name: str = "stoneso
             state = predictor.predict(state, timestamp=when)
         if data.seen[k]:
             if state is None:
-                x0, p0 = ekf.initial_state(data, k, cfg.prior_speed)
+                x0, p0 = ekf.initial_state(data, k, cfg.prior_speed, cam)
                 mean, cov = np.zeros(6), np.diag(np.full(6, Z_SIGMA**2))
                 mean[STATE] = x0
                 cov[np.ix_(STATE, STATE)] = p0
                 state = GaussianState(mean[:, None], cov, timestamp=when)
             else:
-                o = data.observer_meas[k]
+                o = cam.path[k]
                 R = geometry.effective_noise(np.asarray(state.state_vector[XY], float).ravel(), o, data.height,
-                                             data.sigma_alpha, data.sigma_beta, data.sigma_observer)
+                                             data.sigma_alpha, data.sigma_beta, np.sqrt(cam.fold))
                 noise = np.array([[R[1, 1], -R[0, 1]], [-R[0, 1], R[0, 0]]])  # (elevation, bearing)
                 model = CartesianToElevationBearing(
                     ndim_state=6, mapping=(0, 2, 4), noise_covar=noise,
@@ -81,8 +83,8 @@ def track(data: SeaData, cfg: SeaConfig, kind: str = "ukf", name: str = "stoneso
             X[k] = np.asarray(state.state_vector, float).ravel()[STATE]
             P[k] = np.asarray(state.covar, float)[np.ix_(STATE, STATE)]
     P = (P + np.swapaxes(P, 1, 2)) / 2
-    return from_positions(name, data, X[:, :2].copy(), velocity=X[:, 2:].copy(), covariance=P[:, :2, :2].copy(),
-                          state_cov=P)
+    return observer.relative(name, data, cam, X[:, :2].copy(), np.arange(T), velocity=X[:, 2:].copy(),
+                             covariance=P[:, :2, :2].copy(), state_cov=P)
 
 
 @estimator(description="Stone Soup's UnscentedKalmanUpdater with CartesianToElevationBearing (a library tracker)",

@@ -89,8 +89,8 @@ def read(folder: Path) -> SeaData:
         observer = csvfile.to_local(obs["lat_deg"], obs["lon_deg"], obs["lat_deg"][0], obs["lon_deg"][0])
     else:
         raise WorkbenchError(f"{folder / 'observer.csv'}: missing column(s) x_m, y_m (or lat_deg, lon_deg)")
-    velocity = (np.column_stack([obs["vx_mps"], obs["vy_mps"]]) if "vx_mps" in obs and "vy_mps" in obs
-                else np.gradient(observer, dt, axis=0))
+    known = "vx_mps" in obs and "vy_mps" in obs  # else the fixes' own gradient: no path to hold (.observer)
+    velocity = np.column_stack([obs["vx_mps"], obs["vy_mps"]]) if known else np.gradient(observer, dt, axis=0)
     ang = logfiles.table(folder, "angles", ("t_s", "azimuth_rad", "elevation_rad"), repairs)
     steps = _steps(folder / "angles.csv", ang, t0, dt, len(t))
     for col, limit in (("azimuth_rad", math.pi), ("elevation_rad", math.pi / 2)):
@@ -122,7 +122,7 @@ def read(folder: Path) -> SeaData:
                    beta_meas=beta_meas, seen=seen, disturbed=np.zeros(len(t), bool), sigma_alpha=m["sigma_azimuth_rad"],
                    sigma_beta=m["sigma_elevation_rad"], sigma_observer=m["sigma_observer_m"],
                    sigma_acc=m["sigma_acc_mps2"], dt=dt, label=str(m.get("label") or f"log {folder.name}"),
-                   repairs=repairs)
+                   repairs=repairs, velocity_known=known)
 
 
 def _manifest(path: Path) -> dict:
