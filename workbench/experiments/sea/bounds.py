@@ -18,12 +18,16 @@ enough that their mean information is better conditioned than any run's, 1.35 m 
 run's 1.81-1.85 m for the smoothed position on 20 paper runs.)
 
 Reading taken: the issue that asked for the bound put the observer's noise into each step's
-measurement noise, ``R = diag(sa^2, sb^2) + sigma_o^2 J J'``, as the estimators do. That model
-forgets that the platform's path is straight, and with it the bound is not one: the AR filters,
-whose models of the angles use that the true angles are smooth, beat its azimuth bound (0.74'
-against 0.88' on 20 paper runs). With the camera in the state the bound holds for every
-estimator; the position bounds are the same to 1 % (the range, from the elevation, dominates
-them) and the azimuth's falls to 0.36': the camera is known to 4 cm after the run.
+measurement noise, ``R = diag(sa^2, sb^2) + sigma_o^2 J J'``, as the estimators then did. That
+model forgets that the platform's path is known up to its start, and with it the bound is not
+one: the AR filters, whose models of the angles use that the true angles are smooth, beat its
+azimuth bound (0.74' against 0.88' on 20 paper runs). With the camera in the state the bound
+holds for every estimator; the position bounds are the same to 1 % (the range, from the
+elevation, dominates them) and the azimuth's falls to 0.36': the camera is known to 4 cm after
+the run. The model-based estimators now hold the same model (:mod:`.observer`: the camera's start
+as one offset learnt from every fix), and meet it: on 100 paper runs the smoother's position
+efficiency is XXX (1.70 when they folded the fixes in), the filters' XXX, and every
+one's azimuth XXX (2.5-4.9). Algorithms 1-3 keep the measured positions, as the paper.
 
 A causal estimator is held to the filtering bound, a smoother of the whole run to the
 smoothing bound, a fixed-lag smoother to the bound of the data up to its lag

@@ -49,6 +49,9 @@ def from_positions(name: str, data: SeaData, position: np.ndarray, **kw) -> Esti
     the innovation ``nu = z - h(x, o~)`` that the observer's noise and the estimate's own
     uncertainty explain, ``C (C + R0)^-1 nu`` with ``C = J (P + sigma_o^2 I) J'`` and
     ``R0 = diag(sigma_alpha^2, sigma_beta^2)``. Where the object is unseen, ``h(x, o~)``.
+    This is for an estimate that knows the camera by its fixes alone (algorithms 1-3, a
+    researcher's); the model-based estimators hold the camera's offset and report the angles of
+    their own relative estimate (:func:`.observer.relative`).
     """
     alpha, beta = geometry.angles(position, data.observer_meas, data.course, data.height)
     cov = kw.get("covariance")

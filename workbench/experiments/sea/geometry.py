@@ -56,11 +56,12 @@ def effective_noise(target_xy: np.ndarray, observer_xy: np.ndarray, height: floa
                     jacobian: np.ndarray | None = None) -> np.ndarray:
     """Angle-noise covariance with the observer's position noise folded in, ``(..., 2, 2)``.
 
-    The estimators know the observer only through its measured position (1 m per axis in
-    Table 1). Linearising (1)-(2) in the observer position gives
-    ``R = diag(sa^2, sb^2) + sigma_o^2 J J'``: at 700 m the observer's 1 m costs 4.9' of
-    azimuth, more than the camera's 0.88'. ``jacobian``, if given, is
-    :func:`angle_jacobian` at these arguments (saves computing it twice).
+    One fix of the observer's position (1 m per axis in Table 1) taken on its own: linearising
+    (1)-(2) in the observer position gives ``R = diag(sa^2, sb^2) + sigma_o^2 J J'``; at 700 m
+    the observer's 1 m costs 4.9' of azimuth, more than the camera's 0.88'. The model-based
+    estimators fold it in only where the platform's path is not known (:mod:`.observer`); the
+    truth-free residual takes it for the fix each residual is seen from (:func:`.metrics.residual`).
+    ``jacobian``, if given, is :func:`angle_jacobian` at these arguments (saves computing it twice).
     """
     J = angle_jacobian(target_xy, observer_xy, height) if jacobian is None else jacobian
     R = sigma_observer**2 * J @ np.swapaxes(J, -1, -2)

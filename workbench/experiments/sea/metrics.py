@@ -93,13 +93,15 @@ def disagreement(data: SeaData, est: Estimate, ctx: MetricContext) -> Values | N
 def residual(data: SeaData, est: Estimate) -> Values | None:
     """Each step's measured angles against those the estimate's position predicts from the
     measured camera, ``r = (alpha~ - h_alpha, beta~ - h_beta)``, normalised by the measurement's
-    noise with the camera position's folded in (:func:`.geometry.effective_noise`, as the
-    estimators take it) less the estimate's own share, ``r' (R - J P J')^-1 r``
+    noise with that fix's folded in (:func:`.geometry.effective_noise`) less the estimate's own
+    share, ``r' (R - J P J')^-1 r``
     (:func:`~workbench.estimation.consistency.residual`): chi-square with 2 degrees of freedom for
     a consistent estimator that gives its covariance, a test of any estimate, a filter or a
     smoother, built-in or a researcher's, with no innovations of its own to show (truth-free).
-    Without a covariance, ``r' R^-1 r``: a figure to compare, no test (the geometric inverse fits
-    every measurement exactly: 0)."""
+    It holds for one that keeps the camera as an offset (:mod:`.observer`) too: the fix's error
+    less the offset's, ``sigma_o^2 (1 - 1/n)`` per axis, is what ``R - J P J'`` leaves when P
+    holds the offset's ``sigma_o^2 / n``. Without a covariance, ``r' R^-1 r``: a figure to
+    compare, no test (the geometric inverse fits every measurement exactly: 0)."""
     if est.position is None or not np.isfinite(est.position).any():
         return None
     alpha, beta = geometry.angles(est.position, data.observer_meas, data.course, data.height)

@@ -8,7 +8,8 @@ when it is about to leave the window, ``lag`` seconds later: it has seen the dat
 ``t_k + lag`` and no further (a causal system with a fixed delay), so its accuracy lies
 between the causal ``isam2`` (lag 0: the newest step) and the batch ``gtsam`` (lag: the whole
 run); the last ``lag`` seconds are read at the end. Its covariance is the joint marginal of
-``P(k), V(k)`` at the same moment, so its NEES is over the same 4 states as the EKF's.
+``P(k), V(k)`` at the same moment, so its NEES is over the same 4 states as the EKF's. The
+camera's offset it adds is the one the fixes up to the same moment give (:mod:`.observer`).
 
 The lag (``LAG``, 5 s) is a method, not a fit: about the time the elevation's range needs to
 become observable on the paper's geometry (the EKF's radial bias fades over ~40 s; 5 s of

@@ -13,7 +13,9 @@ columns named with their units; the local frame is the sea's: x east, y north, m
 ``observer.csv``    ``t_s``, ``x_m``, ``y_m`` (the measured camera position) or ``lat_deg``,
                     ``lon_deg`` (then the local frame is centred on the first fix), ``course_rad``
                     (the platform's course psi, from which the azimuth is measured), optionally
-                    ``vx_mps``, ``vy_mps``; one row per step, the steps uniform
+                    ``vx_mps``, ``vy_mps`` (its own velocity: without it, the fixes' gradient,
+                    and the estimators fold each fix in, :mod:`.observer`); one row per step,
+                    the steps uniform
 ``angles.csv``      ``t_s``, ``azimuth_rad`` (from the course, in (-pi, pi]), ``elevation_rad``
                     (below the horizon): the measurements; a step without a row is unseen
 ``truth.csv``       optional: ``t_s``, ``x_m``, ``y_m``, ``vx_mps``, ``vy_mps`` (the object), and
