@@ -86,12 +86,19 @@ def dead_reckoning(data: SeaData) -> np.ndarray:
     return d
 
 
+def fixes(data: SeaData) -> Camera:
+    """The camera at each step's fix, its noise folded into the angles' (the model before the offset)."""
+    T = data.steps
+    return Camera(np.asarray(data.observer_meas, float), np.zeros((T, 2)), np.zeros(T), data.sigma_observer**2)
+
+
 def camera(data: SeaData) -> Camera:
     """The run's camera model: the offset's causal estimates on the dead-reckoned path where the
-    platform's velocity is known (``data.velocity_known``), else the fixes with their noise folded in."""
+    platform's velocity is known (``data.velocity_known``), else the fixes with their noise folded
+    in (:func:`fixes`)."""
     T = data.steps
     if not data.velocity_known:
-        return Camera(np.asarray(data.observer_meas, float), np.zeros((T, 2)), np.zeros(T), data.sigma_observer**2)
+        return fixes(data)
     d = dead_reckoning(data)
     n = np.arange(1, T + 1)
     offset = np.cumsum(data.observer_meas - d, axis=0) / n[:, None]

@@ -37,10 +37,11 @@ from workbench.experiments.sea.scenario import SeaData
 
 def initial_state(data: SeaData, k: int, prior_speed: float,
                   cam: observer.Camera | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """Position from (3)-(5) at step k, seen from the camera at ``cam.path[k]`` (default
-    :func:`.observer.camera`), with covariance ``G R G'`` (plus the fix's folded variance where the
-    camera is not held as an offset); zero velocity."""
-    cam = observer.camera(data) if cam is None else cam
+    """Position from (3)-(5) at step k, seen from the camera at ``cam.path[k]``, with covariance
+    ``G R G'`` plus the camera's folded variance; zero velocity. Default: the step's fix, its noise
+    folded in (:func:`.observer.fixes`: a position in the sea's frame, for anyone's filter); the
+    EKF passes its :func:`.observer.camera` (the platform's frame, nothing folded)."""
+    cam = observer.fixes(data) if cam is None else cam
     a, b = data.alpha_meas[k], data.beta_meas[k]
     xy, d = geometry.position(a, b, cam.path[k], data.course[k], data.height)
     bearing = a + data.course[k]
