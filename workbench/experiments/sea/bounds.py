@@ -25,9 +25,16 @@ azimuth bound (0.74' against 0.88' on 20 paper runs). With the camera in the sta
 holds for every estimator; the position bounds are the same to 1 % (the range, from the
 elevation, dominates them) and the azimuth's falls to 0.36': the camera is known to 4 cm after
 the run. The model-based estimators now hold the same model (:mod:`.observer`: the camera's start
-as one offset learnt from every fix), and meet it: on 100 paper runs the smoother's position
-efficiency is XXX (1.70 when they folded the fixes in), the filters' XXX, and every
-one's azimuth XXX (2.5-4.9). Algorithms 1-3 keep the measured positions, as the paper.
+as one offset learnt from every fix) and meet this bound: on 100 paper runs (seed 0) the
+smoother's position efficiency is 0.95 +- 0.05 (1.70 +- 0.09 when they folded each fix in), the
+EKF's and iSAM2's 0.99 and 0.98 (1.13, 1.10), the fixed-lag smoother's 0.91 +- 0.03 (1.24), and
+every one's azimuth 1.00 (2.47-4.85). Algorithms 1-3 keep the measured positions, as the paper.
+
+Under 1 is possible, and is no error of the bound's recursion (the fixed lag's equals the RTS
+smoother run on the data up to each step's lag): this bound, each run's own averaged, lies above
+the posterior bound proper, whose information is averaged first (Jensen), and an estimator may
+fall between the two. On 40 paper runs that one is 8.41 / 3.62 / 1.40 m (filtering / 5 s lag /
+smoothing) against 8.83 / 4.03 / 1.82 m here; the estimators are 1.04, 1.02 and 1.23 times it.
 
 A causal estimator is held to the filtering bound, a smoother of the whole run to the
 smoothing bound, a fixed-lag smoother to the bound of the data up to its lag
