@@ -142,6 +142,14 @@ def test_the_smoother_is_the_graph_with_an_offset_variable(paper_cfg):
     assert np.abs(est.position - X).max() < 1e-3   # 0.03 mm: LM's convergence
 
 
+def test_a_camera_factor_alone_is_the_factor_sets(paper_cfg):
+    data = run.make_data(paper_cfg, 0)
+    f = smoother.FactorSet(data, paper_cfg)
+    values = gtsam.Values()
+    values.insert(P(5), np.array([350.0, 520.0, 0.0]))
+    assert smoother.camera_factor(data, 5, False).error(values) == pytest.approx(f.camera[5].error(values))
+
+
 def test_the_smoother_meets_its_bound_and_the_azimuth_its_own():
     """24 seeded paper runs: the smoother's position efficiency is within 1.2 (1.51 +- 0.19 on 20
     runs, 1.70 on 100, before), every model-based estimator's azimuth within 1.1 of its bound

@@ -15,8 +15,10 @@ noise into that step's angle noise, ``R = diag(sa^2, sb^2) + sigma_o^2 J J'``
 (:func:`.geometry.effective_noise`), as if the camera's error were new at every step. It is
 not: it is the one offset, known after T fixes to ``sigma_o / sqrt(T)`` (3.7 cm on the paper's
 721 steps). The folded model threw that away (at 700 m the 1 m fix costs 4.9' of azimuth against
-the camera's 0.88'), and its weights, which depend on the range guessed from each step's own
-elevation, pulled the smoother's range out by 1-2 m: its position efficiency was 1.51-1.70.
+the camera's 0.88'): on 100 paper runs the smoother's position efficiency was 1.70 +- 0.09, its
+mean error 1.9 m along the line of sight, outwards (the same with the folded noise weighted at
+the true position instead of the geometric guess), and every model-based estimator's azimuth
+2.5-4.9 times its bound. Holding the offset: 0.95 +- 0.05, 0.04 m, 1.00 (:mod:`.bounds`).
 
 **Reading taken, and why it is exact.** The angles (1)-(2) see the object only relative to the
 camera, ``e_k = x_k - o_k = (x_k - d_k) - c``. Moving ``c`` and the whole object track by the same

@@ -119,15 +119,14 @@ def camera_factor(data: SeaData, k: int, robust: bool, cov: np.ndarray | None = 
     o = cam.path[k]
     yaw = data.course[k] + a
     rot = gtsam.Rot3(gtsam.Rot3.Yaw(yaw).matrix() @ _CAMERA_IN_BODY)
-    cam = gtsam.PinholeCameraCal3_S2(gtsam.Pose3(rot, np.array([o[0], o[1], data.height])),
-                                     _UNIT_K)
+    pinhole = gtsam.PinholeCameraCal3_S2(gtsam.Pose3(rot, np.array([o[0], o[1], data.height])), _UNIT_K)
     if cov is None:
         cov = camera_noise(data, cam)[k]
     noise = gtsam.noiseModel.Gaussian.Covariance(cov)
     if robust:
         noise = gtsam.noiseModel.Robust.Create(gtsam.noiseModel.mEstimator.Huber.Create(1.345),
                                                noise)
-    return gtsam.TriangulationFactorCal3_S2(cam, np.array([0.0, np.tan(b)]), noise, P(k))
+    return gtsam.TriangulationFactorCal3_S2(pinhole, np.array([0.0, np.tan(b)]), noise, P(k))
 
 
 def _priors(cfg: SeaConfig, k: int) -> list[gtsam.NonlinearFactor]:
