@@ -148,19 +148,27 @@ def tunable(data: SeaData, cfg: SeaConfig) -> tuple[str, dict[str, float], dict[
     object's acceleration noise and each angle's own noise where the data identify it, from the
     data's own values (config units); and what it leaves, with why.
 
-    The camera's position noise ``s`` moves the azimuth by about ``s / r`` at range ``r`` (the
-    range read from the data: ``h / tan(beta)``, its median over the seen steps) and the elevation
-    by ``h s / r^2``; it reaches the filter only through the angles, where it adds to their own
-    noise, so it is never tuned, and an angle's own noise only where it is :data:`IDENTIFIED` of
-    the angle's variance (the paper's azimuth: 0.88 arcmin against 1 m at ~700 m, 3 %: left)."""
+    The camera's position noise is never tuned by the angles' likelihood. Where the platform's
+    velocity is known (``data.velocity_known``) the estimators hold the camera's start as an offset
+    that the position fixes alone measure (:mod:`.observer`): the angles' likelihood does not see
+    their noise, and each angle's own noise is identified. Where the path is the fixes' own, their
+    noise ``s`` moves the azimuth by about ``s / r`` at range ``r`` (read from the data:
+    ``h / tan(beta)``, its median over the seen steps) and the elevation by ``h s / r^2``, adding
+    to the angle's own noise; an angle's own noise is then tuned only where it is
+    :data:`IDENTIFIED` of the angle's variance."""
     arcmin = math.degrees(1.0) * 60.0
     values = {"sigma_acc": float(data.sigma_acc)}
-    left = {"sigma_observer": "the camera's position noise reaches the filter only through the angles it "
-                              "predicts, where it adds to their own noise: the likelihood cannot tell the two apart"}
+    if data.velocity_known:
+        left = {"sigma_observer": "the position fixes alone measure the camera's offset: the angles' likelihood "
+                                  "does not see their noise"}
+        s = 0.0
+    else:
+        left = {"sigma_observer": "the camera's position noise reaches the filter only through the angles it "
+                                  "predicts, where it adds to their own noise: the likelihood cannot tell them apart"}
+        s = float(data.sigma_observer)
     beta = np.asarray(data.beta_meas, float)
     ok = np.isfinite(beta) & (beta > 0)
     r = float(np.median(data.height / np.tan(beta[ok]))) if ok.any() else math.inf
-    s = float(data.sigma_observer)
     for name, own, added in (("sigma_alpha_arcmin", float(data.sigma_alpha), s / r),
                              ("sigma_beta_arcmin", float(data.sigma_beta), data.height * s / r ** 2)):
         share = own ** 2 / (own ** 2 + added ** 2) if own > 0 else 0.0
