@@ -126,7 +126,7 @@ def _shared(exp) -> list[inspect.Parameter]:
     tune = inspect.Parameter("tune_noise", inspect.Parameter.KEYWORD_ONLY, annotation=bool | None,
                              default=typer.Option(None, "--tune-noise/--no-tune-noise", help=_escape(
                                  "First estimate the noise the data identify, by a filter's likelihood on the "
-                                 "data (no truth used); every estimator then assumes it [off].")))
+                                 "data (no truth used); every estimator then assumes it [off; sea ais on].")))
     if exp.writes_logs:
         rows.append(("export_data", str, "Write run 0's dataset into this folder in the open log format "
                                           "(docs/log-formats.md; read it back with --scenario log --data)."))

@@ -156,7 +156,7 @@ class Config:
     runs: int = 1
     estimators: tuple[str, ...] = ()
     add_metrics: tuple[str, ...] = ()
-    tune_noise: bool = False  # estimate the noise the data identify by a filter's likelihood first (tuning.selftune)
+    tune_noise: bool = by_scenario(False)  # estimate the noise the data identify first (tuning.selftune)
     estimator_timeout: float = ESTIMATOR_TIMEOUT
 
     def to_json(self) -> dict:
