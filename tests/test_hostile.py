@@ -225,6 +225,94 @@ def test_every_tune_param_is_a_space_or_one_line_error(exp):
     check()
 
 
+@pytest.mark.parametrize("exp", all_experiments(), ids=lambda e: e.name)
+def test_every_sweep_grid_value_is_cells_or_one_line_error(exp):
+    """Any ``--grid KEY=V1,V2`` a user can type for a sweep gives checked cells or one line."""
+    from workbench.sweeps import grid
+
+    keys = [f.name for f in dataclasses.fields(exp.config_type)] + [o.flags[0].lstrip("-") for o in exp.options]
+
+    @settings(max_examples=200, deadline=None, database=None, derandomize=True,
+              suppress_health_check=[HealthCheck.too_slow])
+    @given(key=st.one_of(st.sampled_from(keys), TEXT), values=st.lists(st.one_of(FLOATS.map(repr), TEXT), max_size=3))
+    def check(key, values):
+        GENERATED["cases"] += 1
+        try:
+            cells = grid.cells(grid.parse(exp, [f"{key}={','.join(values)}"]))
+            for cell in cells:
+                api.configure(exp, **grid.expand(exp, cell))
+        except WorkbenchError as exc:
+            GENERATED["errors"] += 1
+            assert "\n" not in str(exc) and str(exc)
+
+    check()
+
+
+def test_a_grid_value_of_a_setting_without_default_is_typed_by_its_field():
+    """Found by the fuzz above: omni's sigma-bearing defaults to None (the scenario's), so ':' went
+    through as text and the config's check failed with a TypeError (an internal error)."""
+    from workbench.experiments import get
+    from workbench.sweeps import grid
+
+    with pytest.raises(WorkbenchError, match="--grid sigma_bearing_deg=:"):
+        grid.parse(get("omni"), ["sigma-bearing=:"])
+    assert grid.parse(get("omni"), ["sigma-bearing=0.5,2"]) == {"sigma_bearing_deg": (0.5, 2.0)}
+
+
+@pytest.fixture(scope="module")
+def exported_logs(tmp_path_factory):
+    """Each experiment's run 0 written in its open log format (docs/log-formats.md), small."""
+    from workbench.experiments import get
+
+    folders = {}
+    for name, settings_ in (("sea", {"duration": 10.0}), ("omni", {"duration": 10.0}),
+                            ("terrain", {"size": "100x100"})):
+        exp = get(name)
+        cfg = exp.validate(exp.configure(**settings_))
+        folder = tmp_path_factory.mktemp(f"log-{name}")
+        exp.role("run").write_log(exp.dataset(cfg, 0), folder, force=True)
+        folders[name] = folder
+    return folders
+
+
+@pytest.mark.parametrize("name", ["sea", "omni", "terrain"])
+def test_every_log_manifest_value_is_data_or_one_line_error(name, exported_logs, tmp_path_factory):
+    """A log's manifest with any of its keys set to any JSON value (or left out, or one added) reads
+    as data or is one line naming the file: never another exception (``--scenario log``)."""
+    import shutil
+
+    from workbench.experiments import get
+
+    exp = get(name)
+    base = exported_logs[name]
+    manifest = json.loads((base / "manifest.json").read_text())
+    json_values = st.one_of(FLOATS.filter(math.isfinite), INTS, TEXT, st.booleans(), st.none(),
+                            st.lists(st.one_of(FLOATS.filter(math.isfinite), INTS), max_size=3),
+                            st.just({"a": 1}))
+
+    @settings(max_examples=60, deadline=None, database=None, derandomize=True,
+              suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
+    @given(key=st.one_of(st.sampled_from(sorted(manifest)), TEXT), value=json_values, drop=st.booleans())
+    def check(key, value, drop):
+        GENERATED["cases"] += 1
+        folder = tmp_path_factory.mktemp("fuzzlog")
+        shutil.copytree(base, folder, dirs_exist_ok=True)
+        changed = dict(manifest)
+        if drop:
+            changed.pop(key, None)
+        else:
+            changed[key] = value
+        (folder / "manifest.json").write_text(json.dumps(changed))
+        try:
+            cfg = exp.validate(exp.configure("log", data=folder))
+            exp.dataset(cfg, 0)
+        except WorkbenchError as exc:
+            GENERATED["errors"] += 1
+            assert "\n" not in str(exc) and str(exc)
+
+    check()
+
+
 def test_the_property_tests_generated_thousands_of_cases():
     """Runs after the property tests (file order): they tried thousands of values, most refused."""
     if GENERATED["cases"] == 0:

@@ -57,7 +57,13 @@ def parse_value(exp: Experiment, field: str, text: str) -> Any:
     for opt in exp.settable:
         if field in (opt.field, *opt.fields) and opt.parse is not None:
             return opt.value(text)
-    default = _field_types(exp).get(_multi(exp).get(field, (field,))[0], 0)
+    name = _multi(exp).get(field, (field,))[0]
+    default = _field_types(exp).get(name, 0)
+    if default is None:  # no default to type it by (None: "the data's own"): the field's annotation
+        from workbench.experiments.configfile import field_type
+
+        kind = field_type(exp, name)
+        default = {float: 0.0, int: 0, bool: False}.get(kind, default)
     try:
         if isinstance(default, bool):
             low = text.lower()
