@@ -1,5 +1,6 @@
 """Running the ``workbench`` command as a user does, for the end-to-end tests."""
 
+import signal
 import subprocess
 import sys
 
@@ -43,3 +44,10 @@ def bad_logs_say_one_line(experiment: str, folder, tmp_path, cases) -> None:
         assert not out.exists()
     r = wb(experiment, "--scenario", "log", "--out", str(tmp_path / "x.rrd"))
     assert r.returncode == 2 and "--scenario log needs --data" in r.stderr
+
+
+def ctrl_c_as_a_terminal() -> None:
+    """``preexec_fn`` for a run a test interrupts: SIGINT delivered as a terminal's Ctrl-C is, even
+    where the suite itself was started with SIGINT ignored (a script's background job inherits
+    SIG_IGN, and a Python started so installs no KeyboardInterrupt handler: the run would not stop)."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)

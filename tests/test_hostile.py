@@ -23,6 +23,7 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from launcher import ctrl_c_as_a_terminal
 from typer.testing import CliRunner
 
 from workbench import api
@@ -386,7 +387,8 @@ def test_a_run_writes_strict_json_metrics(tmp_path):
 def test_signals_end_the_run_and_its_workers_cleanly(tmp_path, how):
     p = subprocess.Popen([sys.executable, "-m", "workbench", "sea", "--runs", "400", "--duration", "30",
                           "--out", str(tmp_path / "s.rrd"), "--metrics", str(tmp_path / "s.json")],
-                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True,
+                         preexec_fn=ctrl_c_as_a_terminal)
     workers: list[str] = []
     for _ in range(200):  # until the Monte Carlo pool is up
         time.sleep(0.2)

@@ -15,7 +15,7 @@ import warnings
 from pathlib import Path
 
 import pytest
-from launcher import wb
+from launcher import ctrl_c_as_a_terminal, wb
 
 from workbench.recording import readback
 
@@ -125,7 +125,7 @@ def test_serve_keeps_serving_until_interrupted(tmp_path):
     accepts connections seconds later) until Ctrl-C, which ends it cleanly (exit 0, one line)."""
     p = subprocess.Popen([sys.executable, "-m", "workbench", "sea", "--duration", "10", "--serve", "--out",
                           str(tmp_path / "s.rrd")], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                         start_new_session=True)
+                         start_new_session=True, preexec_fn=ctrl_c_as_a_terminal)
     t0 = time.time()
     while not (tmp_path / "s.rrd").exists() and time.time() - t0 < 240 and p.poll() is None:
         time.sleep(0.2)

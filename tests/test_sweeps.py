@@ -17,7 +17,7 @@ from pathlib import Path
 import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
-from launcher import wb
+from launcher import ctrl_c_as_a_terminal, wb
 
 from workbench.errors import WorkbenchError
 from workbench.experiments import get
@@ -102,7 +102,8 @@ def test_a_stopped_sweep_resumes_without_recomputing(tmp_path, how):
     how to finish): the finished tasks stay, untouched by the resumed sweep, which computes only
     the others; every row is there once."""
     out = tmp_path / "sw"
-    proc = subprocess.Popen(_cli(out), start_new_session=True, stderr=subprocess.PIPE, text=True)
+    proc = subprocess.Popen(_cli(out), start_new_session=True, stderr=subprocess.PIPE, text=True,
+                            preexec_fn=ctrl_c_as_a_terminal)
     _wait_for(out, 6, proc)
     os.killpg(proc.pid, signal.SIGKILL if how == "killed" else signal.SIGINT)
     _, err = proc.communicate(timeout=60)
