@@ -15,7 +15,7 @@ def rng() -> np.random.Generator:
 
 
 SLOW_FIRST = ("test_browser.py", "test_tutorials.py", "test_bounds.py", "test_notebook.py", "test_omni_cli.py",
-              "test_terrain_measure.py")
+              "test_terrain_measure.py", "test_tune.py", "test_hostile.py")
 """The files that take minutes, run first: with a file per worker (``-n auto --dist loadfile``) the
 short ones then fill in beside them, instead of one long file running alone at the end."""
 
