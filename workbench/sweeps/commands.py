@@ -70,12 +70,7 @@ def sweep(
     for name in spec:  # the grid sets these in every cell: the file's or the preset's value is not fixed
         for f in grids.expand(exp, {name: None}):
             overrides.pop(f, None)
-    for item in fixed or []:
-        key, eq, value = item.partition("=")
-        if not eq:
-            raise WorkbenchError(f"--set {item!r} must look like KEY=VALUE")
-        name = grids.resolve_key(exp, key)
-        overrides.update(grids.expand(exp, {name: grids.parse_value(exp, name, value)}))
+    overrides.update(grids.settings(exp, fixed or []))
     if not spec:
         raise WorkbenchError("nothing to sweep: give --grid KEY=V1,V2,... or --preset NAME")
     if out is not None and (not out.strip() or Path(out).resolve() == Path.cwd().resolve()):

@@ -108,6 +108,19 @@ def parse(exp: Experiment, specs: Iterable[str]) -> dict[str, tuple]:
     return grid
 
 
+def settings(exp: Experiment, items: Iterable[str]) -> dict[str, Any]:
+    """``--set KEY=VALUE`` items (a sweep's or a study's settings for every cell or trial) as config
+    overrides, each parsed as a grid value."""
+    out: dict[str, Any] = {}
+    for item in items:
+        key, eq, value = str(item).partition("=")
+        if not eq:
+            raise WorkbenchError(f"--set {item!r} must look like KEY=VALUE")
+        name = resolve_key(exp, key)
+        out.update(expand(exp, {name: parse_value(exp, name, value)}))
+    return out
+
+
 def cells(grid: Mapping[str, tuple]) -> list[dict[str, Any]]:
     """The product of the grid's values, the first key slowest; one empty cell for no grid."""
     keys = list(grid)

@@ -50,12 +50,7 @@ def tune(
     listed = base.pop("estimators", ())
     for name in ("seed", "runs"):
         base.pop(name, None)
-    for item in fixed or []:
-        key, eq, value = item.partition("=")
-        if not eq:
-            raise WorkbenchError(f"--set {item!r} must look like KEY=VALUE")
-        name = grids.resolve_key(exp, key)
-        base.update(grids.expand(exp, {name: grids.parse_value(exp, name, value)}))
+    base.update(grids.settings(exp, fixed or []))
     params = space.parse(exp, list(param or []), base, scenario)
     if out is not None and (not out.strip() or Path(out).resolve() == Path.cwd().resolve()):
         raise WorkbenchError(f"--out {out!r}: name a folder of its own for the study (--force empties it)")
