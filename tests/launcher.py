@@ -9,10 +9,13 @@ from workbench.paths import data_root
 DATA = data_root()
 
 
-def wb(*args, cwd=None, timeout: int = 900) -> subprocess.CompletedProcess:
-    """``python -m workbench ARGS`` in a fresh process; output captured as text."""
+def wb(*args, cwd=None, timeout: int = 900, env: dict | None = None) -> subprocess.CompletedProcess:
+    """``python -m workbench ARGS`` in a fresh process (``env``: variables set over this one's);
+    output captured as text."""
+    import os
+
     return subprocess.run([sys.executable, "-m", "workbench", *args], capture_output=True, text=True,
-                          cwd=cwd, timeout=timeout)
+                          cwd=cwd, timeout=timeout, env=None if env is None else {**os.environ, **env})
 
 
 def edit_line(text: str, number: int, change) -> str:
@@ -51,3 +54,26 @@ def ctrl_c_as_a_terminal() -> None:
     where the suite itself was started with SIGINT ignored (a script's background job inherits
     SIG_IGN, and a Python started so installs no KeyboardInterrupt handler: the run would not stop)."""
     signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
+def kernels() -> dict[str, dict[str, str]]:
+    """Environments that make this processor do its arithmetic as others would (the BLAS kernel
+    OpenBLAS would pick there, numpy's SIMD loops turned down to theirs, numba compiled for them):
+    ``avx2`` a machine without AVX-512 (Haswell kernels), ``sandybridge`` one without AVX2/FMA,
+    ``prescott`` an SSE3-era one, ``skylakex`` an AVX-512 one, each where this processor can run it."""
+    from workbench.tools import machine
+
+    _, flags = machine._processor()
+    simd = machine.numpy_simd()
+    wide = [t for t in simd if t.startswith("AVX512") or t == "X86_V4"]
+    out = {"prescott": {"OPENBLAS_CORETYPE": "Prescott", "NUMBA_CPU_NAME": "generic",
+                        **({"NPY_DISABLE_CPU_FEATURES": " ".join(simd)} if simd else {})}}
+    if "avx" in flags:
+        out["sandybridge"] = {"OPENBLAS_CORETYPE": "Sandybridge", "NUMBA_CPU_NAME": "sandybridge",
+                              **({"NPY_DISABLE_CPU_FEATURES": " ".join(simd)} if simd else {})}
+    if "avx2" in flags and "fma" in flags:
+        out["avx2"] = {"OPENBLAS_CORETYPE": "Haswell", "NUMBA_CPU_NAME": "haswell",
+                       **({"NPY_DISABLE_CPU_FEATURES": " ".join(wide)} if wide else {})}
+    if "avx512f" in flags:
+        out["skylakex"] = {"OPENBLAS_CORETYPE": "SkylakeX"}
+    return out

@@ -138,6 +138,11 @@ def _properties(rec: rr.RecordingStream, experiment: str, config: dict, seed: in
         experiment=experiment, config=json.dumps(config, sort_keys=True), version=__version__,
         git_commit=git_commit() or "unknown", seed=seed, command=command_line(),
         date=datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds")))
+    from workbench.tools import machine
+
+    # what chose the arithmetic (processor, BLAS kernel, SIMD targets, versions): `workbench replay`
+    # elsewhere names what differs
+    rec.send_property("workbench_machine", rr.AnyValues(json=json.dumps(machine.fingerprint())))
 
 
 VIEWER_PORT = 9876

@@ -26,7 +26,7 @@ import pyarrow as pa
 
 from workbench.errors import WorkbenchError
 from workbench.recording import readback
-from workbench.tools import browser, provenance
+from workbench.tools import browser, provenance, reproduce
 
 LIGHTER = 0.45
 """How far toward white the colours of every run after the first are taken."""
@@ -328,7 +328,7 @@ def results_text(runs: list[Run], pairs: list[tuple[str, str]], limit: int = 60)
         for a, b in pairs:
             keys += [(k, b + k[len(a):]) for k in base if k.startswith(a + ".") and b + k[len(a):] in other]
         rows = [(ka if ka == kb else f"{kb} - {ka}", base[ka], other[kb]) for ka, kb in keys
-                if not math.isclose(base[ka], other[kb], rel_tol=provenance.TOLERANCE, abs_tol=1e-12)]
+                if reproduce.relative(float(base[ka]), float(other[kb])) > reproduce.FLOAT_TOLERANCE]
         lines += [f"**{r.label} - {runs[0].label}**: {len(rows)} of {len(keys)} figures differ", ""]
         if rows:
             lines += [f"| figure | {runs[0].label} | {r.label} | difference |", "|---|---|---|---|"]

@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import math
 import warnings
 from pathlib import Path
 from typing import Any
@@ -19,7 +18,6 @@ from workbench.version import __version__
 IGNORED = {"seconds", "wall_seconds", "recording", "frames_per_second", "seconds_per_frame", "estimator_table",
            "tum", "config"}
 """Metrics keys that are not results: timings, paths, the config itself (compared separately)."""
-TOLERANCE = 1e-9
 
 
 @dataclasses.dataclass
@@ -35,6 +33,7 @@ class Stored:
     command: str
     date: str
     metrics: dict | None
+    machine: dict | None = None  # what made the numbers (:mod:`.machine`); None: recorded before it was stored
 
 
 def read(path: Path) -> Stored:
@@ -51,6 +50,7 @@ def read(path: Path) -> Stored:
             warnings.simplefilter("ignore")
             props = readback.properties(path)
             metrics = readback.properties(path, "workbench_metrics")
+            machine = readback.properties(path, "workbench_machine")
     except Exception as exc:  # the reader's errors for a file that is not (or no longer) an .rrd
         raise WorkbenchError(f"cannot read {path} as a Rerun recording: {type(exc).__name__}: "
                              f"{str(exc).splitlines()[0] if str(exc) else ''}") from None
@@ -64,7 +64,8 @@ def read(path: Path) -> Stored:
     _check_version(path, str(props.get("version", "")))
     return Stored(path, str(props["experiment"]), json.loads(props["config"]), str(props.get("version", "")),
                   str(props.get("git_commit", "unknown")), int(props.get("seed", 0)), str(props.get("command", "")),
-                  str(props.get("date", "")), json.loads(metrics["json"]) if "json" in metrics else None)
+                  str(props.get("date", "")), json.loads(metrics["json"]) if "json" in metrics else None,
+                  json.loads(machine["json"]) if "json" in machine else None)
 
 
 def comparison(path: Path) -> list[dict] | None:
@@ -127,10 +128,13 @@ def config_of(stored: Stored) -> Any:
 def describe(stored: Stored) -> str:
     """What ``workbench info`` prints."""
     m = stored.metrics or {}
+    from workbench.tools import machine
+
     lines = [f"{stored.path}: a recording of {stored.experiment} ({stored.config.get('scenario', '')}), "
              f"{stored.config.get('runs', '?')} run(s), seed {stored.seed}",
              f"made by:   {stored.command or '(not stored)'}",
              f"on:        {stored.date or '(not stored)'} with workbench {stored.version}, commit {stored.git_commit}"]
+    lines += machine.describe(stored.machine)
     table = m.get("estimator_table", {})
     if table:
         lines.append("estimators:")
@@ -150,62 +154,51 @@ def describe(stored: Stored) -> str:
     return "\n".join(lines)
 
 
-def differences(stored: Any, fresh: Any, path: str = "") -> tuple[int, list[str]]:
-    """Numbers compared and the ones that differ (beyond ``TOLERANCE``, relative), as
-    ``path: stored -> fresh``; a stored key the replay lacks is a difference, one the replay
-    adds (a figure a later version computes) is not compared."""
-    compared, out = 0, []
-    if isinstance(stored, dict) and isinstance(fresh, dict):
-        for key in sorted(set(stored) | set(fresh)):
-            if key in IGNORED:
-                continue
-            where = f"{path}.{key}" if path else key
-            if key not in stored:  # a figure this version adds: nothing recorded to compare it with
-                continue
-            if key not in fresh:
-                if _numbers(stored[key]):  # (an empty table of figures has nothing to compare)
-                    out.append(f"{where}: stored, not computed any more")
-                continue
-            n, d = differences(stored[key], fresh[key], where)
-            compared, out = compared + n, out + d
-    elif isinstance(stored, list) and isinstance(fresh, list) and len(stored) == len(fresh):
-        for i, (a, b) in enumerate(zip(stored, fresh, strict=True)):
-            n, d = differences(a, b, f"{path}[{i}]")
-            compared, out = compared + n, out + d
-    elif isinstance(stored, (int, float)) and isinstance(fresh, (int, float)) and not isinstance(stored, bool):
-        compared = 1
-        same = (math.isnan(stored) and math.isnan(fresh)) if (math.isnan(stored) or math.isnan(fresh)) else \
-            math.isclose(stored, fresh, rel_tol=TOLERANCE, abs_tol=1e-12)
-        if not same:
-            out.append(f"{path}: {stored:.6g} -> {fresh:.6g}")
-    elif stored != fresh:
-        compared = 1
-        out.append(f"{path}: {stored!r} -> {fresh!r}")
-    return compared, out
-
-
-def _numbers(x: Any) -> int:
-    if isinstance(x, dict):
-        return sum(_numbers(v) for v in x.values())
-    if isinstance(x, list):
-        return sum(_numbers(v) for v in x)
-    return 1
-
-
-def replay(stored: Stored, jobs: int | None = None) -> tuple[int, list[str]]:
-    """Run the recording's experiment again from its stored config; compare every number (a key
-    a later release renamed compared under its new name, :attr:`Experiment.renamed`)."""
+def rerun(stored: Stored, jobs: int | None = None, only: list[str] | None = None) -> tuple[dict, Any, Any]:
+    """The recording's experiment run again from its stored config (``only`` those of its
+    estimators, by name): the fresh metrics (a key a later release renamed also under its new
+    name, :attr:`Experiment.renamed`), and the :class:`~workbench.api.Result` and its experiment
+    (for the runs' standard errors)."""
     import copy
 
     from workbench import api
     from workbench.experiments import figures, get
 
+    cfg = config_of(stored)
+    exp = get(stored.experiment)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        chosen = cfg.estimators or None
+        if only:
+            chosen = [spec for spec in (cfg.estimators or ()) if spec.split("=")[0] in only] or list(only)
+        res = api.run(stored.experiment, config=cfg, estimators=chosen, jobs=jobs)
+    return figures.add_renamed(copy.deepcopy(res.metrics), exp.renamed), res, exp
+
+
+def replay(stored: Stored, jobs: int | None = None, probe: bool = True):
+    """Run the recording's experiment again and judge every stored number
+    (:func:`.reproduce.judge`): the same bits, the same to floating point, or different. On another
+    machine an estimator whose figures moved beyond floating point is run again here with the
+    arithmetic perturbed (``probe``); where that moves it too it is held to its Monte Carlo error."""
+    from workbench.experiments import figures
+    from workbench.tools import machine, reproduce
+
     if stored.metrics is None:
         raise WorkbenchError(f"{stored.path} stores no metrics (recorded before workbench stored them): "
                              "nothing to compare")
-    cfg = config_of(stored)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", RuntimeWarning)
-        res = api.run(stored.experiment, config=cfg, estimators=cfg.estimators or None, jobs=jobs)
-    fresh = figures.add_renamed(copy.deepcopy(res.metrics), get(stored.experiment).renamed)
-    return differences(stored.metrics, fresh)
+    fresh, res, exp = rerun(stored, jobs)
+    here = machine.fingerprint()
+    cfg = res.config
+
+    def errors() -> dict[str, float]:
+        def stats(subset: list) -> dict:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", RuntimeWarning)
+                return figures.add_renamed(exp.statistics(cfg, subset), exp.renamed)
+        return reproduce.standard_errors(stats, res.summaries)
+
+    def perturbed(names: list[str] | None) -> list[dict]:
+        return reproduce.perturbed_metrics(stored.path, names, jobs)
+
+    return reproduce.judge(stored.metrics, fresh, IGNORED, machine.differences(stored.machine, here),
+                           probe=perturbed if probe else None, errors=errors)

@@ -1,0 +1,182 @@
+"""The machine a run's numbers were computed on, as far as it moves them: stored in every recording
+(``workbench info`` shows it, ``workbench replay`` names what differs from the machine it runs on).
+
+The same code and data give the same bits only where the floating-point operations are done in
+the same order with the same rounding, and on x86-64 three things here choose that at run time,
+by processor:
+
+* **the BLAS kernel**: numpy's OpenBLAS (``DYNAMIC_ARCH``) picks its kernels by processor
+  (Haswell, SkylakeX, Zen, Sandybridge, ...; ``OPENBLAS_CORETYPE`` overrides it): a matrix
+  product's sums are blocked and fused (FMA) differently by each;
+* **numpy's own SIMD loops**: ufuncs such as ``exp``, ``log`` and ``sin`` are dispatched to the
+  widest extension the processor has (``AVX512_SKX`` uses other polynomial kernels than
+  ``AVX2``: ``exp`` of the same array differs in its last bit; ``NPY_DISABLE_CPU_FEATURES``
+  turns targets off);
+* **numba's JIT** compiles for the host processor (``NUMBA_CPU_NAME`` overrides it); with
+  ``fastmath`` its reductions are vectorised to the processor's width.
+
+GTSAM (Eigen, compiled for baseline x86-64 in the wheel) and Python's own arithmetic are the same
+everywhere; the library versions matter everywhere. :func:`fingerprint` records each of these;
+:func:`differences` says which differ. See ``docs/reproducibility.md`` for what a replay on
+another machine can promise.
+"""
+
+from __future__ import annotations
+
+import os
+import platform
+from importlib import metadata
+from pathlib import Path
+from typing import Any
+
+PACKAGES = ("numpy", "scipy", "gtsam", "rerun-sdk", "numba", "opencv-python-headless")
+"""The libraries whose versions move the numbers (or the recording)."""
+
+OVERRIDES = ("OPENBLAS_CORETYPE", "OPENBLAS_L2_SIZE", "NPY_DISABLE_CPU_FEATURES", "NPY_ENABLE_CPU_FEATURES",
+             "NUMBA_CPU_NAME", "NUMBA_CPU_FEATURES")
+"""Environment variables that choose the kernels instead of the processor."""
+
+CPU_FLAGS = ("sse4_2", "avx", "fma", "avx2", "avx512f", "avx512dq", "avx512vl", "avx512bw")
+"""The processor's features the kernels above choose by."""
+
+
+def _processor() -> tuple[str, list[str]]:
+    """The processor's model name and which of :data:`CPU_FLAGS` it has (Linux's /proc/cpuinfo;
+    ``platform`` elsewhere, without flags)."""
+    try:
+        with open("/proc/cpuinfo", encoding="utf-8", errors="replace") as f:
+            text = f.read(200_000)
+    except OSError:
+        return platform.processor() or platform.machine(), []
+    model, flags = "", set()
+    for line in text.splitlines():
+        key, _, value = line.partition(":")
+        key = key.strip()
+        if key == "model name" and not model:
+            model = value.strip()
+        elif key == "flags" and not flags:
+            flags = set(value.split())
+        if model and flags:
+            break
+    return model or platform.machine(), [f for f in CPU_FLAGS if f in flags]
+
+
+def blas() -> str:
+    """The BLAS libraries numpy and scipy use and the kernel each chose here, e.g. ``numpy: openblas
+    0.3.31 SkylakeX; scipy: openblas 0.3.30 SkylakeX`` (each wheel brings its own)."""
+    import numpy  # noqa: F401  (threadpoolctl finds the BLAS libraries loaded: numpy's and scipy's)
+    import scipy.linalg  # noqa: F401
+    from threadpoolctl import threadpool_info
+
+    found = []
+    for i in threadpool_info():
+        if i.get("user_api") != "blas":
+            continue
+        where = Path(str(i.get("filepath", ""))).parent.name.removesuffix(".libs") or "?"
+        if where not in ("numpy", "scipy"):  # another wheel's own copy, loaded or not by the time of asking
+            continue
+        found.append(f"{where}: " + " ".join(str(i[k]) for k in ("internal_api", "version", "architecture")
+                                             if i.get(k)))
+    return "; ".join(sorted(found)) or "unknown"
+
+
+def numpy_simd() -> list[str]:
+    """numpy's SIMD dispatch targets in use here (those its build has and this processor, less
+    ``NPY_DISABLE_CPU_FEATURES``, allows)."""
+    try:
+        from numpy._core._multiarray_umath import __cpu_dispatch__, __cpu_features__
+    except ImportError:  # numpy 1.x
+        from numpy.core._multiarray_umath import __cpu_dispatch__, __cpu_features__
+    return [t for t in __cpu_dispatch__ if __cpu_features__.get(t)]
+
+
+def _version(package: str) -> str:
+    try:
+        return metadata.version(package)
+    except metadata.PackageNotFoundError:
+        return "absent"
+
+
+def fingerprint() -> dict[str, Any]:
+    """This machine as far as it moves the numbers: processor, BLAS kernel, numpy's SIMD
+    targets, the versions of Python and the numeric libraries, and any override set."""
+    model, flags = _processor()
+    return {
+        "processor": model,
+        "cpu_flags": flags,
+        "blas": blas(),
+        "numpy_simd": numpy_simd(),
+        "python": platform.python_version(),
+        "versions": {p: _version(p) for p in PACKAGES},
+        "overrides": {k: os.environ[k] for k in OVERRIDES if os.environ.get(k)},
+    }
+
+
+def differences(recorded: dict | None, here: dict) -> list[str]:
+    """What differs between the machine a recording was made on and this one, one phrase each
+    (``[]``: the same as far as the numbers go); ``None`` recorded: made before recordings kept it."""
+    if recorded is None:
+        return ["the recording does not say which machine made it (made before workbench stored it)"]
+    out = []
+    for key in ("processor", "blas", "numpy_simd", "python", "cpu_flags", "overrides"):
+        a, b = recorded.get(key), here.get(key)
+        if a != b:
+            out.append(f"{key.replace('_', ' ')}: {_text(a)} -> {_text(b)}")
+    versions_a, versions_b = recorded.get("versions", {}), here.get("versions", {})
+    for p in sorted(set(versions_a) | set(versions_b)):
+        if versions_a.get(p) != versions_b.get(p):
+            out.append(f"{p}: {versions_a.get(p, '?')} -> {versions_b.get(p, '?')}")
+    return out
+
+
+def _text(value: Any) -> str:
+    if isinstance(value, list):
+        return " ".join(value) if value else "(none)"
+    if isinstance(value, dict):
+        return " ".join(f"{k}={v}" for k, v in value.items()) if value else "(none)"
+    return str(value)
+
+
+def describe(recorded: dict | None) -> list[str]:
+    """``workbench info``'s lines of the machine a recording was made on."""
+    if recorded is None:
+        return ["machine:   (not stored: recorded before workbench stored it)"]
+    v = recorded.get("versions", {})
+    lines = [f"machine:   {recorded.get('processor', '?')} ({' '.join(recorded.get('cpu_flags', [])) or '-'})",
+             f"           BLAS {recorded.get('blas', '?')}; numpy SIMD {_text(recorded.get('numpy_simd', []))}",
+             f"           Python {recorded.get('python', '?')}, "
+             + ", ".join(f"{p} {v[p]}" for p in PACKAGES if p in v)]
+    if recorded.get("overrides"):
+        lines.append(f"           set: {_text(recorded['overrides'])}")
+    return lines
+
+
+def perturbed_environments(base: dict[str, str] | None = None) -> list[dict[str, str]]:
+    """Two environments whose arithmetic differs from this process's in the last bits, on this same
+    machine, for a replay to see which estimators amplify them (two, because a chaotic estimator
+    shows it under one perturbation and hardly under another: measured, omni's iSAM2 moved 1.4e-6
+    under the first and 1.3e-4 under the second):
+
+    1. the oldest OpenBLAS kernel (Prescott, SSE3; OpenBLAS reports it as Katmai), numpy's SIMD
+       targets all off (its baseline loops), numba compiled for a generic processor;
+    2. an AVX kernel (Sandybridge; Haswell where this process runs Sandybridge already), numpy's
+       widest SIMD level off (its AVX-512 loops, or AVX2's where there are none), numba as here.
+
+    On a processor other than x86-64 the kernels are left alone and the SIMD and numba changes
+    made."""
+    env = dict(os.environ if base is None else base)
+    current = blas()
+    _, flags = _processor()
+    targets = numpy_simd()
+    wide = [t for t in targets if t.startswith("AVX512") or t == "X86_V4"] or targets[-1:]
+    first, second = dict(env), dict(env)
+    if targets:
+        first["NPY_DISABLE_CPU_FEATURES"] = " ".join(targets)
+        second["NPY_DISABLE_CPU_FEATURES"] = " ".join(wide)
+    first["NUMBA_CPU_NAME"] = "generic"
+    if platform.machine() in ("x86_64", "AMD64"):
+        first["OPENBLAS_CORETYPE"] = "Sandybridge" if ("Prescott" in current or "Katmai" in current) \
+            and "avx" in flags else "Prescott"
+        if "avx" in flags:
+            second["OPENBLAS_CORETYPE"] = "Haswell" if "Sandybridge" in current and "avx2" in flags else "Sandybridge"
+    return [first, second]
