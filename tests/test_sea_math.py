@@ -178,3 +178,48 @@ def test_the_residual_of_an_estimate_that_used_the_measurement():
     for name in ("ekf", "gtsam", "isam2"):
         assert lo < e[name]["angle_residual"] < hi, (name, e[name]["angle_residual"])
     assert e["geometric"]["angle_residual"] < 1e-12 and e["rls"]["angle_residual"] > 0.1
+
+
+def _reference_ekf(data, cfg):
+    """The sea EKF as the textbook writes it: :func:`kalman.predict` and :func:`kalman.update`
+    with ``H = [J, 0]`` from :func:`geometry.angle_jacobian`, R from :func:`geometry.effective_noise`."""
+    from workbench.experiments.sea import observer
+
+    F, Q = kalman.cv_transition(data.dt), kalman.cv_noise_discrete(data.dt, data.sigma_acc)
+    gate = -2.0 * np.log1p(-cfg.ekf_gate)
+    cam = observer.camera(data)
+    X = np.full((data.steps, 4), np.nan)
+    x = P = None
+    for k in range(data.steps):
+        if x is not None:
+            x, P = kalman.predict(x, P, F, Q)
+        if data.seen[k]:
+            if x is None:
+                x, P = ekf.initial_state(data, k, cfg.prior_speed, cam)
+            else:
+                o = cam.path[k]
+                h = np.array(geometry.angles(x[:2], o, data.course[k], data.height))
+                J = geometry.angle_jacobian(x[:2], o, data.height)
+                H = np.hstack([J, np.zeros((2, 2))])
+                R = geometry.effective_noise(x[:2], o, data.height, data.sigma_alpha, data.sigma_beta,
+                                             np.sqrt(cam.fold), jacobian=J)
+                nu = np.array([wrap(data.alpha_meas[k] - h[0]), data.beta_meas[k] - h[1]])
+                S = H @ P @ H.T + R
+                if cfg.ekf_gate <= 0 or nu @ np.linalg.solve(S, nu) <= gate:
+                    x, P, _ = kalman.update(x, P, nu, H, R)
+        if x is not None:
+            X[k] = x
+    return X[:, :2] + cam.offset if cam.offset_model else X[:, :2]
+
+
+@pytest.mark.parametrize("scenario", ["paper", "impulse"])
+def test_the_ekf_loop_is_the_textbook_ekf(scenario):
+    """The EKF's scalar measurement model and closed-form 2x2 inverse give the textbook filter's
+    estimates (kalman.predict / kalman.update, the geometry module's angles, Jacobian and noise) to
+    rounding, with the gate on (impulse) and off (paper)."""
+    cfg = workbench.configure("sea", scenario=scenario, estimators=["ekf"])
+    data = run.make_data(cfg, 2)
+    mine = ekf.estimate(data, cfg).position
+    theirs = _reference_ekf(data, cfg)
+    ok = np.isfinite(theirs[:, 0])
+    assert np.isfinite(mine[ok]).all() and np.max(np.abs(mine[ok] - theirs[ok])) < 1e-9 * np.max(np.abs(theirs[ok]))

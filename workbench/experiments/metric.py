@@ -25,6 +25,7 @@ the recording of every experiment it applies to.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import inspect
 import re
 from collections.abc import Callable, Iterable, Mapping
@@ -84,6 +85,16 @@ class MetricContext:
         return self.cache[key]
 
 
+@functools.lru_cache(maxsize=512)
+def _takes_context(fn: Callable) -> bool:
+    """Whether a metric's function takes the context as a third argument (asked once per function:
+    ``inspect.signature`` costs 25 us, and a run asks it of every metric and estimator)."""
+    try:
+        return len(inspect.signature(fn).parameters) >= 3
+    except (TypeError, ValueError):
+        return False
+
+
 @dataclass(frozen=True, eq=False)
 class Metric:
     """One metric: its function and how its samples read and combine (see the module's text)."""
@@ -120,11 +131,7 @@ class Metric:
 
     def __call__(self, data: Any, estimate: Any, ctx: MetricContext) -> Values | None:
         fn = self.function
-        try:
-            takes = len(inspect.signature(fn).parameters) >= 3
-        except (TypeError, ValueError):
-            takes = False
-        out = fn(data, estimate, ctx) if takes else fn(data, estimate)
+        out = fn(data, estimate, ctx) if _takes_context(fn) else fn(data, estimate)
         if out is None or isinstance(out, Values):
             return out
         if isinstance(out, tuple) and len(out) == 2:
