@@ -26,6 +26,9 @@ def test_kalman_filter_and_rts_smoother_attain_their_bounds():
     info = np.broadcast_to(bounds.measurement_information(H[None], R[None])[0], (T, 2, 2))
     filt = bounds.filtering(P0, F, Q, info)
     smooth = bounds.smoothing(filt, F, Q)
+    # the predictions' information kept by the filtering pass gives the smoother the same bits
+    again, predicted = bounds.filtering_and_prediction(P0, F, Q, info)
+    assert np.array_equal(again, filt) and np.array_equal(bounds.smoothing(filt, F, Q, predicted), smooth)
     rng = np.random.default_rng(7)
     N = 4000
     ef, es = np.zeros((N, T, 2)), np.zeros((N, T, 2))

@@ -145,7 +145,7 @@ class Bounds:
         self.Q[:4, :4] = kalman.cv_noise_discrete(m.dt, m.sigma_acc)
         self.info = np.mean([information(t, m) for t in self.truths], axis=0)
         P0 = np.diag([DIFFUSE**2, DIFFUSE**2, m.prior_speed**2, m.prior_speed**2, DIFFUSE**2, DIFFUSE**2][:n])
-        self.filtered = bounds.filtering(P0, self.F, self.Q, self.info)
+        self.filtered, self._predicted = bounds.filtering_and_prediction(P0, self.F, self.Q, self.info)
 
     def covariance(self, delay: float) -> np.ndarray:
         """The state bound ``(T, 6, 6)`` of an estimator using the data up to ``delay`` s after each step."""
@@ -154,7 +154,7 @@ class Bounds:
             if steps == 0:
                 self._cache[steps] = self.filtered
             elif steps >= len(self.info) - 1:
-                self._cache[steps] = bounds.smoothing(self.filtered, self.F, self.Q)
+                self._cache[steps] = bounds.smoothing(self.filtered, self.F, self.Q, self._predicted)
             else:
                 self._cache[steps] = fixed_lag(self.filtered, self.F, self.Q, steps)
         return self._cache[steps]

@@ -107,19 +107,30 @@ def camera_noise(data: SeaData, cam: observer.Camera | None = None) -> np.ndarra
     return d[:, :, None] * R * d[:, None, :]
 
 
+def camera_rotations(yaw: np.ndarray) -> np.ndarray:
+    """The camera's orientation ``(..., 3, 3)`` yawed to ``yaw`` (course plus measured azimuth):
+    ``Rz(yaw) @ _CAMERA_IN_BODY``, for every step at once."""
+    c, s = np.cos(yaw), np.sin(yaw)
+    Rz = np.zeros(np.shape(yaw) + (3, 3))
+    Rz[..., 0, 0], Rz[..., 0, 1], Rz[..., 1, 0], Rz[..., 1, 1], Rz[..., 2, 2] = c, -s, s, c, 1.0
+    return Rz @ _CAMERA_IN_BODY
+
+
 def camera_factor(data: SeaData, k: int, robust: bool, cov: np.ndarray | None = None,
-                  cam: observer.Camera | None = None) -> gtsam.NonlinearFactor:
+                  cam: observer.Camera | None = None, rotation: np.ndarray | None = None) -> gtsam.NonlinearFactor:
     """The azimuth/elevation measurement of step k as a fixed-camera projection factor, the
     camera at ``cam.path[k]`` (:func:`.observer.camera`, computed here if not given).
 
-    ``cov`` is the measurement covariance (:func:`camera_noise`), computed here if not given.
+    ``cov`` is the measurement covariance (:func:`camera_noise`) and ``rotation`` the camera's
+    orientation (:func:`camera_rotations`), computed here if not given.
     """
     cam = observer.camera(data) if cam is None else cam
-    a, b = data.alpha_meas[k], data.beta_meas[k]
+    b = data.beta_meas[k]
     o = cam.path[k]
-    yaw = data.course[k] + a
-    rot = gtsam.Rot3(gtsam.Rot3.Yaw(yaw).matrix() @ _CAMERA_IN_BODY)
-    pinhole = gtsam.PinholeCameraCal3_S2(gtsam.Pose3(rot, np.array([o[0], o[1], data.height])), _UNIT_K)
+    if rotation is None:
+        rotation = camera_rotations(np.asarray(data.course[k] + data.alpha_meas[k], float))
+    pinhole = gtsam.PinholeCameraCal3_S2(gtsam.Pose3(gtsam.Rot3(rotation), np.array([o[0], o[1], data.height])),
+                                         _UNIT_K)
     if cov is None:
         cov = camera_noise(data, cam)[k]
     noise = gtsam.noiseModel.Gaussian.Covariance(cov)
@@ -185,7 +196,8 @@ class FactorSet:
     def __init__(self, data: SeaData, cfg: SeaConfig):
         self.observer = observer.camera(data)
         cov = camera_noise(data, self.observer)
-        self.camera = [camera_factor(data, k, cfg.robust, cov[k], self.observer) if data.seen[k] else None
+        rot = camera_rotations(np.broadcast_to(data.course, data.alpha_meas.shape) + data.alpha_meas)
+        self.camera = [camera_factor(data, k, cfg.robust, cov[k], self.observer, rot[k]) if data.seen[k] else None
                        for k in range(data.steps)]
         self.moves = motion_factors(data.dt, data.sigma_acc, data.steps - 1)
         self.initial = _initial_track(data, self.observer)
@@ -215,8 +227,8 @@ def batch(data: SeaData, cfg: SeaConfig, covariances: bool = False,
     params = gtsam.LevenbergMarquardtParams()
     params.setMaxIterations(100)
     result = gtsam.LevenbergMarquardtOptimizer(graph, init, params).optimize()
-    X = np.array([result.atPoint3(P(k))[:2] for k in range(T)])
-    Vel = np.array([result.atPoint3(V(k))[:2] for k in range(T)])
+    points = gtsam.utilities.extractPoint3(result)  # in key order: P(0..T-1), then V(0..T-1)
+    X, Vel = points[:T, :2], points[T:2 * T, :2]
     cov = marginal_covariances(graph, result, T) if covariances else None
     # every step has seen every fix: the offset from all of them
     return observer.relative("gtsam", data, factors.observer, X, T - 1, velocity=Vel, covariance=cov)
