@@ -61,7 +61,7 @@ def kernels() -> dict[str, dict[str, str]]:
     OpenBLAS would pick there, numpy's SIMD loops turned down to theirs, numba compiled for them):
     ``avx2`` a machine without AVX-512 (Haswell kernels), ``sandybridge`` one without AVX2/FMA,
     ``prescott`` an SSE3-era one, ``skylakex`` an AVX-512 one, each where this processor can run it."""
-    from workbench.tools import machine
+    from workbench.recording import machine
 
     _, flags = machine._processor()
     simd = machine.numpy_simd()

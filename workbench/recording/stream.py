@@ -138,7 +138,7 @@ def _properties(rec: rr.RecordingStream, experiment: str, config: dict, seed: in
         experiment=experiment, config=json.dumps(config, sort_keys=True), version=__version__,
         git_commit=git_commit() or "unknown", seed=seed, command=command_line(),
         date=datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds")))
-    from workbench.tools import machine
+    from workbench.recording import machine
 
     # what chose the arithmetic (processor, BLAS kernel, SIMD targets, versions): `workbench replay`
     # elsewhere names what differs

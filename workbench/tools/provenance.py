@@ -128,7 +128,7 @@ def config_of(stored: Stored) -> Any:
 def describe(stored: Stored) -> str:
     """What ``workbench info`` prints."""
     m = stored.metrics or {}
-    from workbench.tools import machine
+    from workbench.recording import machine
 
     lines = [f"{stored.path}: a recording of {stored.experiment} ({stored.config.get('scenario', '')}), "
              f"{stored.config.get('runs', '?')} run(s), seed {stored.seed}",
@@ -181,7 +181,8 @@ def replay(stored: Stored, jobs: int | None = None, probe: bool = True):
     machine an estimator whose figures moved beyond floating point is run again here with the
     arithmetic perturbed (``probe``); where that moves it too it is held to its Monte Carlo error."""
     from workbench.experiments import figures
-    from workbench.tools import machine, reproduce
+    from workbench.recording import machine
+    from workbench.tools import reproduce
 
     if stored.metrics is None:
         raise WorkbenchError(f"{stored.path} stores no metrics (recorded before workbench stored them): "
@@ -198,7 +199,49 @@ def replay(stored: Stored, jobs: int | None = None, probe: bool = True):
         return reproduce.standard_errors(stats, res.summaries)
 
     def perturbed(names: list[str] | None) -> list[dict]:
-        return reproduce.perturbed_metrics(stored.path, names, jobs)
+        return perturbed_metrics(stored.path, names, jobs)
 
     return reproduce.judge(stored.metrics, fresh, IGNORED, machine.differences(stored.machine, here),
                            probe=perturbed if probe else None, errors=errors)
+
+
+def perturbed_metrics(recording: Path, estimators: list[str] | None = None, jobs: int | None = None) -> list[dict]:
+    """The recording's run again (``estimators`` alone, or all) in child processes whose arithmetic
+    differs here in the last bits (:func:`workbench.recording.machine.perturbed_environments`):
+    their metrics JSON, for :func:`.reproduce.judge`'s ``probe``."""
+    import subprocess
+    import sys
+    import tempfile
+
+    from workbench.recording import machine
+
+    out = []
+    with tempfile.TemporaryDirectory(prefix="workbench-probe-") as d:
+        for i, env in enumerate(machine.perturbed_environments()):
+            path = Path(d) / f"metrics{i}.json"
+            args = [sys.executable, "-m", "workbench.tools.provenance", str(recording), str(path),
+                    str(jobs or 0), ",".join(estimators or [])]
+            r = subprocess.run(args, env=env, capture_output=True, text=True)
+            if r.returncode != 0 or not path.exists():
+                last = (r.stderr.strip().splitlines() or ["no output"])[-1]
+                raise WorkbenchError(f"the perturbed run of {recording} failed: {last}")
+            out.append(json.loads(path.read_text()))
+    return out
+
+
+def _main(argv: list[str]) -> int:
+    """``python -m workbench.tools.provenance RECORDING OUT.json [JOBS [EST,EST...]]``: the
+    recording's run again in this process (whatever its environment; those estimators alone where
+    named), its metrics written to OUT.json."""
+    stored = read(Path(argv[0]))
+    jobs = int(argv[2]) if len(argv) > 2 and int(argv[2]) > 0 else None
+    names = [n for n in argv[3].split(",") if n] if len(argv) > 3 else []
+    fresh, _, _ = rerun(stored, jobs, names or None)
+    Path(argv[1]).write_text(json.dumps(fresh, default=str))
+    return 0
+
+
+if __name__ == "__main__":
+    import sys
+
+    sys.exit(_main(sys.argv[1:]))

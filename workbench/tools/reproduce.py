@@ -7,8 +7,9 @@
    an estimator that does not amplify its rounding;
 3. **numbers that differ beyond floating point**, listed; except, on another machine, those of
    an estimator that amplifies its last bits (a diverging filter; an iteration count or a gate
-   decided by a hair): a run here with the arithmetic perturbed (:func:`.machine.perturbed_environment`:
-   another OpenBLAS kernel, numpy's SIMD off, numba generic) shows which ones do, and their figures
+   decided by a hair): runs here with the arithmetic perturbed
+   (:func:`workbench.recording.machine.perturbed_environments`: other OpenBLAS kernels, numpy's
+   SIMD loops turned down, numba generic) show which ones do, and their figures
    are held to their Monte Carlo standard error (a grouped jackknife over the runs) instead:
    within :data:`SE_LIMIT` of it they agree as well as the runs can tell; with one run there is
    no such error and they are said to be not reproducible across machines, not compared.
@@ -21,12 +22,7 @@ difference: nothing is excused there.
 from __future__ import annotations
 
 import dataclasses
-import json
 import math
-import subprocess
-import sys
-import tempfile
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -304,42 +300,3 @@ def standard_errors(statistics: Any, summaries: list, groups: int = JACKKNIFE_GR
         if np.isfinite(x).all():
             out[path] = float(np.sqrt((g - 1) / g * np.sum((x - x.mean()) ** 2)))
     return out
-
-
-def perturbed_metrics(recording: Path, estimators: list[str] | None = None, jobs: int | None = None) -> list[dict]:
-    """The recording's run again (``estimators`` alone, or all) in child processes whose arithmetic
-    differs here in the last bits (:func:`.machine.perturbed_environments`): their metrics JSON,
-    for :func:`judge`'s ``probe``."""
-    from workbench.errors import WorkbenchError
-    from workbench.tools import machine
-
-    out = []
-    with tempfile.TemporaryDirectory(prefix="workbench-probe-") as d:
-        for i, env in enumerate(machine.perturbed_environments()):
-            path = Path(d) / f"metrics{i}.json"
-            args = [sys.executable, "-m", "workbench.tools.reproduce", str(recording), str(path),
-                    str(jobs or 0), ",".join(estimators or [])]
-            r = subprocess.run(args, env=env, capture_output=True, text=True)
-            if r.returncode != 0 or not path.exists():
-                last = (r.stderr.strip().splitlines() or ["no output"])[-1]
-                raise WorkbenchError(f"the perturbed run of {recording} failed: {last}")
-            out.append(json.loads(path.read_text()))
-    return out
-
-
-def _main(argv: list[str]) -> int:
-    """``python -m workbench.tools.reproduce RECORDING OUT.json [JOBS [EST,EST...]]``: the
-    recording's run again in this process (whatever its environment; those estimators alone where
-    named), its metrics written to OUT.json."""
-    from workbench.tools import provenance
-
-    stored = provenance.read(Path(argv[0]))
-    jobs = int(argv[2]) if len(argv) > 2 and int(argv[2]) > 0 else None
-    names = [n for n in argv[3].split(",") if n] if len(argv) > 3 else []
-    fresh, _, _ = provenance.rerun(stored, jobs, names or None)
-    Path(argv[1]).write_text(json.dumps(fresh, default=str))
-    return 0
-
-
-if __name__ == "__main__":
-    sys.exit(_main(sys.argv[1:]))
