@@ -18,6 +18,22 @@ def wb(*args, cwd=None, timeout: int = 900, env: dict | None = None) -> subproce
                           cwd=cwd, timeout=timeout, env=None if env is None else {**os.environ, **env})
 
 
+def cli(*args: str) -> subprocess.CompletedProcess:
+    """``workbench ARGS`` in this process (:func:`workbench.cli.run_cli`, the command's own entry
+    after its signal set-up), output captured as text: for the many short commands that end in a
+    one-line error, where a fresh interpreter's 1-2 s of imports is all a subprocess would add."""
+    from typer.testing import CliRunner
+
+    from workbench.cli import run_cli
+
+    with CliRunner().isolation() as (out, err, _):
+        code = run_cli(list(args))
+        sys.stdout.flush()
+        sys.stderr.flush()
+        return subprocess.CompletedProcess(["workbench", *args], code, out.getvalue().decode(),
+                                           err.getvalue().decode())
+
+
 def edit_line(text: str, number: int, change) -> str:
     """``text`` with line ``number`` (1-based) split at commas, changed by ``change``, joined again."""
     lines = text.splitlines()
@@ -28,7 +44,8 @@ def edit_line(text: str, number: int, change) -> str:
 def bad_logs_say_one_line(experiment: str, folder, tmp_path, cases) -> None:
     """Each ``(file, break, needles)``: a copy of the log ``folder`` with ``file`` broken (``break``
     maps its text to the broken text; None deletes it) read by ``--scenario log``: exit code 2, one
-    line holding every needle, no traceback, no recording written."""
+    line holding every needle, no traceback, no recording written (the command run in this process,
+    :func:`cli`; the first case once more as its own process)."""
     import shutil
 
     for i, (name, breaks, needles) in enumerate(cases):
@@ -40,13 +57,15 @@ def bad_logs_say_one_line(experiment: str, folder, tmp_path, cases) -> None:
             text = (folder / name).read_text() if name.endswith((".csv", ".json")) else ""
             (bad / name).write_text(breaks(text))
         out = tmp_path / f"bad{i}.rrd"
-        r = wb(experiment, "--scenario", "log", "--data", str(bad), "--out", str(out))
+        r = cli(experiment, "--scenario", "log", "--data", str(bad), "--out", str(out))
         said = r.stderr.strip()
         assert r.returncode == 2 and "\n" not in said and "Traceback" not in said, (name, said)
         assert all(n in said for n in needles), (i, name, said)
         assert not out.exists()
-    r = wb(experiment, "--scenario", "log", "--out", str(tmp_path / "x.rrd"))
+    r = cli(experiment, "--scenario", "log", "--out", str(tmp_path / "x.rrd"))
     assert r.returncode == 2 and "--scenario log needs --data" in r.stderr
+    r = wb(experiment, "--scenario", "log", "--data", str(tmp_path / "bad0"), "--out", str(tmp_path / "x.rrd"))
+    assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1, r.stderr  # (and so in a process of its own)
 
 
 def ctrl_c_as_a_terminal() -> None:

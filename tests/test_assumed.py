@@ -4,7 +4,7 @@ model-mismatch study is one sweep and a tuner varies only what they are told."""
 
 import numpy as np
 import pytest
-from launcher import wb
+from launcher import cli
 
 import workbench
 
@@ -44,6 +44,6 @@ def test_the_omni_estimators_alone_are_told():
     (("omni", "--assume-sigma-bearing", "-1"), "--assume-sigma-bearing must be a positive number"),
 ])
 def test_bad_assumptions_are_one_line(tmp_path, args, said):
-    r = wb(*args, "--runs", "1", "--duration", "5", "--out", str(tmp_path / "x.rrd"))
+    r = cli(*args, "--runs", "1", "--duration", "5", "--out", str(tmp_path / "x.rrd"))
     assert r.returncode == 2 and said in r.stderr and "\n" not in r.stderr.strip() and "Traceback" not in r.stderr
     assert not (tmp_path / "x.rrd").exists()

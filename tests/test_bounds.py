@@ -162,11 +162,13 @@ def test_sea_estimators_are_not_below_their_bounds(tmp_path):
 def test_omni_bounds_on_the_paper_scenario(tmp_path):
     """Omni: pose and map bounds from the odometry and bearing model at the truth; the GTSAM
     estimators near them and none below (within three Monte Carlo standard errors); the
-    smoothing bound under the filtering one at every step; the curves in the recording."""
+    smoothing bound under the filtering one at every step; the curves in the recording. (200 s runs:
+    the verdicts of 300 s ones in half the time; measured, the smallest efficiency 1.15 +- 0.20,
+    iSAM2's heading.)"""
     import workbench
     from workbench.recording import readback
 
-    res = workbench.run("omni", runs=6, duration=300.0, estimators="+fixed-lag", out=tmp_path / "o.rrd")
+    res = workbench.run("omni", runs=6, duration=200.0, estimators="+fixed-lag", out=tmp_path / "o.rrd")
     stats = res.metrics["estimators"]
     assert stats["ekf"]["bound_kind"] == "filtering" and stats["gtsam-batch"]["bound_kind"] == "smoothing"
     assert stats["fixed-lag"]["bound_kind"].startswith("smoothing (a lower bound for a 5 s lag")

@@ -5,7 +5,7 @@ runs), and bad input as one line and exit code 2."""
 
 import numpy as np
 import pytest
-from launcher import wb
+from launcher import cli, wb
 
 from workbench.recording import readback
 from workbench.tools import browser, provenance
@@ -109,6 +109,6 @@ def test_bad_input_is_one_line_and_exit_2(sea, tmp_path):
         ((str(a), str(b), "--labels", "one", "--out", str(tmp_path / "x.rrd")), "names 1 runs for 2"),
     ]
     for args, needle in cases:
-        r = wb("compare", *args)
+        r = cli("compare", *args)
         assert r.returncode == 2 and needle in r.stderr and len(r.stderr.strip().splitlines()) == 1, (args, r.stderr)
     assert provenance.read(a).experiment == "sea"  # an input is never touched

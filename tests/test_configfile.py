@@ -6,7 +6,7 @@ import json
 
 import numpy as np
 import pytest
-from launcher import wb
+from launcher import cli, wb
 
 import workbench
 
@@ -69,7 +69,7 @@ def test_the_same_run_from_a_file_and_from_options(tmp_path):
 ])
 def test_a_bad_file_is_one_line_naming_the_key(tmp_path, text, suffix, said):
     (tmp_path / f"c.{suffix}").write_text(text)
-    r = wb("sea", "--config", str(tmp_path / f"c.{suffix}"), "--out", str(tmp_path / "x.rrd"))
+    r = cli("sea", "--config", str(tmp_path / f"c.{suffix}"), "--out", str(tmp_path / "x.rrd"))
     assert r.returncode == 2 and said in r.stderr, r.stderr
     assert "\n" not in r.stderr.strip() and "Traceback" not in r.stderr
     assert not (tmp_path / "x.rrd").exists()

@@ -12,7 +12,7 @@ import textwrap
 import numpy as np
 import pyarrow.parquet as pq
 import pytest
-from launcher import wb
+from launcher import cli, wb
 
 import workbench
 from workbench.errors import WorkbenchError
@@ -174,5 +174,5 @@ def test_a_broken_metric_costs_its_own_figures(tmp_path):
     assert "Traceback" not in r.stderr
     stats = json.loads(m.read_text())
     assert stats["estimators"]["geometric"]["position_rmse"] > 0 and "broken" not in stats["estimators"]["geometric"]
-    r = wb("sea", "--add-metrics", "nowhere:thing", "--out", str(tmp_path / "b.rrd"))
+    r = cli("sea", "--add-metrics", "nowhere:thing", "--out", str(tmp_path / "b.rrd"))
     assert r.returncode == 2 and "cannot import metric module 'nowhere'" in r.stderr and "Traceback" not in r.stderr

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from launcher import DATA, wb
+from launcher import DATA, cli, wb
 
 import workbench
 from workbench.experiments.omni import tum
@@ -222,7 +222,7 @@ def test_bad_input_one_line_exit_2(tmp_path, args, needle):
             "FEWCOLS": lambda: _mrclam_copy(tmp_path, _few_columns)}
     args = [str(subs[a]()) if a in subs else a for a in args]
     out = tmp_path / "x.rrd"
-    r = wb("omni", "--out", str(out), *args)
+    r = cli("omni", "--out", str(out), *args)
     assert r.returncode == 2, r.stderr
     lines = r.stderr.strip().splitlines()
     assert len(lines) == 1 and needle in lines[0] and "Traceback" not in r.stderr, r.stderr
@@ -232,7 +232,7 @@ def test_bad_input_one_line_exit_2(tmp_path, args, needle):
 def test_existing_output_not_overwritten(tmp_path):
     out = tmp_path / "keep.rrd"
     out.write_bytes(b"precious")
-    r = wb("omni", "--out", str(out), "--duration", "5")
+    r = cli("omni", "--out", str(out), "--duration", "5")
     assert r.returncode == 2 and "--force" in r.stderr
     assert out.read_bytes() == b"precious"
 
@@ -274,7 +274,7 @@ def test_from_images(tmp_path):
 
 
 def test_from_images_needs_the_simulation(tmp_path):
-    r = wb("omni", "--from-images", "--scenario", "mrclam", "--out", str(tmp_path / "x.rrd"))
+    r = cli("omni", "--from-images", "--scenario", "mrclam", "--out", str(tmp_path / "x.rrd"))
     assert r.returncode == 2 and "--from-images" in r.stderr and len(r.stderr.strip().splitlines()) == 1
 
 

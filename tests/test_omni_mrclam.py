@@ -395,7 +395,7 @@ def test_a_quirky_real_log_runs_with_its_repairs_said(tmp_path):
     import json
     import shutil
 
-    from launcher import wb
+    from launcher import cli, wb
 
     d = tmp_path / "quirky"
     d.mkdir()
@@ -414,7 +414,7 @@ def test_a_quirky_real_log_runs_with_its_repairs_said(tmp_path):
     t = float(rows[100].split()[0])
     bad = rows[:200] + [f"{t - 60.0:.3f} 0.0 0.0\n"] + rows[200:]
     (d / "Robot1_Odometry.dat").write_text("".join(head + bad))
-    r = wb("omni", "--scenario", "mrclam", "--data", str(d), "--robot", "1", "--out", str(tmp_path / "b.rrd"))
+    r = cli("omni", "--scenario", "mrclam", "--data", str(d), "--robot", "1", "--out", str(tmp_path / "b.rrd"))
     assert r.returncode == 2 and "time goes backwards" in r.stderr and len(r.stderr.strip().splitlines()) == 1
 
 

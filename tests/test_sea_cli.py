@@ -4,7 +4,7 @@ import json
 import os
 
 import pytest
-from launcher import DATA, wb
+from launcher import DATA, cli, wb
 
 from workbench.recording import readback
 
@@ -79,7 +79,7 @@ def _malformed_ais(tmp_path):
 def test_bad_input_one_line_exit_2(tmp_path, args, needle):
     args = [_malformed_ais(tmp_path) if a == "MALFORMED" else a for a in args]
     out = tmp_path / "x.rrd"
-    r = wb("sea", "--out", str(out), *args)
+    r = cli("sea", "--out", str(out), *args)
     assert r.returncode == 2
     lines = r.stderr.strip().splitlines()
     assert len(lines) == 1 and needle in lines[0] and "Traceback" not in r.stderr
@@ -88,14 +88,14 @@ def test_bad_input_one_line_exit_2(tmp_path, args, needle):
 
 @pytest.mark.skipif(not (DATA / "ais").is_dir(), reason="real AIS data not present")
 def test_unknown_mmsi(tmp_path):
-    r = wb("sea", "--scenario", "ais", "--mmsi", "1", "--out", str(tmp_path / "x.rrd"))
+    r = cli("sea", "--scenario", "ais", "--mmsi", "1", "--out", str(tmp_path / "x.rrd"))
     assert r.returncode == 2 and "unknown MMSI" in r.stderr
 
 
 def test_existing_output_not_overwritten(tmp_path):
     out = tmp_path / "keep.rrd"
     out.write_bytes(b"precious")
-    r = wb("sea", "--out", str(out), "--duration", "5")
+    r = cli("sea", "--out", str(out), "--duration", "5")
     assert r.returncode == 2 and "--force" in r.stderr
     assert out.read_bytes() == b"precious"
 
@@ -107,7 +107,7 @@ def test_unwritable_path(tmp_path):
     try:
         if os.access(locked, os.W_OK):
             pytest.skip("running as a user who can write anywhere (root)")
-        r = wb("sea", "--out", str(locked / "x.rrd"), "--duration", "5")
+        r = cli("sea", "--out", str(locked / "x.rrd"), "--duration", "5")
         assert r.returncode == 2 and "cannot write" in r.stderr
     finally:
         locked.chmod(0o700)
@@ -116,7 +116,7 @@ def test_unwritable_path(tmp_path):
 def test_unwritable_path_under_a_file(tmp_path):
     blocker = tmp_path / "file"
     blocker.write_text("x")
-    r = wb("sea", "--out", str(blocker / "x.rrd"), "--duration", "5")
+    r = cli("sea", "--out", str(blocker / "x.rrd"), "--duration", "5")
     assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1
 
 

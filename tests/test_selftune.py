@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 import pytest
-from launcher import wb
+from launcher import cli, wb
 
 import workbench
 from workbench.estimation.consistency import Innovations
@@ -61,6 +61,6 @@ def test_the_command_says_what_it_tuned_and_terrain_says_why_not(tmp_path):
     # the camera's start an offset the fixes measure: both angles' own noise is identified, and tuned
     assert set(json.loads((tmp_path / "a.json").read_text())["tuned_noise"]["tuned"]) == {
         "sigma_acc", "sigma_alpha_arcmin", "sigma_beta_arcmin"}
-    r = wb("terrain", "--tune-noise", "--out", str(tmp_path / "t.rrd"))
+    r = cli("terrain", "--tune-noise", "--out", str(tmp_path / "t.rrd"))
     assert r.returncode == 2 and "terrain's estimators report no innovations" in r.stderr, r.stderr
     assert "\n" not in r.stderr.strip() and not (tmp_path / "t.rrd").exists()

@@ -17,7 +17,7 @@ from pathlib import Path
 import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
-from launcher import ctrl_c_as_a_terminal, wb
+from launcher import cli, ctrl_c_as_a_terminal, wb
 
 from workbench.errors import WorkbenchError
 from workbench.experiments import get
@@ -200,7 +200,7 @@ def test_presets(tmp_path):
 ])
 def test_bad_input_is_one_line_and_exit_2(tmp_path, args, needle):
     out = tmp_path / "sw"
-    r = wb("sweep", "sea", "--runs", "1", "--out", str(out), *args)
+    r = cli("sweep", "sea", "--runs", "1", "--out", str(out), *args)
     assert r.returncode == 2 and needle in r.stderr and len(r.stderr.strip().splitlines()) == 1, r.stderr
     assert not (out / "tasks").exists() or not list((out / "tasks").iterdir())
 
@@ -209,13 +209,13 @@ def test_an_existing_folder_needs_force_or_resume(tmp_path):
     out = tmp_path / "sw"
     args = ("sweep", "sea", "--grid", "lam=1", "--runs", "1", *SEA, "--out", str(out))
     assert wb(*args).returncode == 0
-    r = wb(*args)
+    r = cli(*args)
     assert r.returncode == 2 and "--resume" in r.stderr and "--force" in r.stderr
-    r = wb("sweep", "sea", "--grid", "lam=0.9", "--runs", "1", *SEA, "--out", str(out), "--resume")
+    r = cli("sweep", "sea", "--grid", "lam=0.9", "--runs", "1", *SEA, "--out", str(out), "--resume")
     assert r.returncode == 2 and "its grid differ" in r.stderr
     r = wb(*args, "--force")
     assert r.returncode == 0 and "0 done before, 1 computed" in r.stdout
     (tmp_path / "other").mkdir()
     (tmp_path / "other" / "notes.txt").write_text("mine")
-    r = wb("sweep", "sea", "--grid", "lam=1", "--runs", "1", "--out", str(tmp_path / "other"), "--force")
+    r = cli("sweep", "sea", "--grid", "lam=1", "--runs", "1", "--out", str(tmp_path / "other"), "--force")
     assert r.returncode == 2 and "holds no sweep" in r.stderr and (tmp_path / "other" / "notes.txt").exists()

@@ -6,7 +6,7 @@ import shutil
 
 import numpy as np
 import pytest
-from launcher import wb
+from launcher import cli, wb
 
 from workbench.errors import WorkbenchError
 from workbench.experiments.terrain import dem as dem_mod
@@ -98,7 +98,7 @@ def test_bad_input_is_one_line_and_exit_2(tmp_path, args, message):
     if "--data" in args and "." in args:  # a folder that exists but is checked after the size
         args = tuple(str(tmp_path) if a == "." else a for a in args)
     out = tmp_path / "t.rrd"
-    r = wb("terrain", "--out", str(out), *args)
+    r = cli("terrain", "--out", str(out), *args)
     assert r.returncode == 2, r.stderr
     assert message in r.stderr and len(r.stderr.strip().splitlines()) == 1 and "Traceback" not in r.stderr
     assert not out.exists()
@@ -143,7 +143,7 @@ def test_ngi_bad_folders(tmp_path):
         shutil.copy(f, tmp_path / f.name)
     (tmp_path / "dem.tif").chmod(0o644)
     (tmp_path / "dem.tif").write_bytes((NGI / "dem.tif").read_bytes()[:3000])
-    r = wb("terrain", "--scenario", "ngi", "--data", str(tmp_path), "--out", str(tmp_path / "a.rrd"))
+    r = cli("terrain", "--scenario", "ngi", "--data", str(tmp_path), "--out", str(tmp_path / "a.rrd"))
     assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1, r.stderr
     assert "DEM" in r.stderr or "TIFF" in r.stderr
     shutil.copy(NGI / "dem.tif", tmp_path / "dem.tif")
@@ -151,7 +151,7 @@ def test_ngi_bad_folders(tmp_path):
     orient.chmod(0o644)
     orient.write_text("\n".join(line for line in (NGI / "camera_pos_ori.txt").read_text().splitlines()
                                 if "0184" not in line))
-    r = wb("terrain", "--scenario", "ngi", "--data", str(tmp_path), "--out", str(tmp_path / "b.rrd"))
+    r = cli("terrain", "--scenario", "ngi", "--data", str(tmp_path), "--out", str(tmp_path / "b.rrd"))
     assert r.returncode == 2 and "no frame 0184" in r.stderr and len(r.stderr.strip().splitlines()) == 1
 
 

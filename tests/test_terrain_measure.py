@@ -9,7 +9,7 @@ import shutil
 
 import numpy as np
 import pytest
-from launcher import wb
+from launcher import cli, wb
 from scipy.stats import chi2
 
 from workbench import api
@@ -284,16 +284,16 @@ def test_measure_command_prints_values_and_sigmas(written):
 ])
 def test_bad_measurements_are_one_line_exit_2(written, args, says):
     d, _, _, _ = written
-    r = wb("measure", str(d / "t.model"), *args)
+    r = cli("measure", str(d / "t.model"), *args)
     assert r.returncode == 2 and r.stderr.startswith("error:") and says in r.stderr, r.stderr
     assert r.stderr.count("\n") == 1 and "Traceback" not in r.stderr
 
 
 def test_missing_or_foreign_model_files_are_refused(written, tmp_path):
     d, _, _, _ = written
-    r = wb("measure", str(tmp_path / "nothing"), "--point", "1,1")
+    r = cli("measure", str(tmp_path / "nothing"), "--point", "1,1")
     assert r.returncode == 2 and "model not found" in r.stderr
-    r = wb("measure", str(tmp_path), "--point", "1,1")
+    r = cli("measure", str(tmp_path), "--point", "1,1")
     assert r.returncode == 2 and "no model.json" in r.stderr
     # another run's model.npz dropped into this folder
     other = tmp_path / "other"
@@ -301,7 +301,7 @@ def test_missing_or_foreign_model_files_are_refused(written, tmp_path):
     mine = tmp_path / "mine"
     shutil.copytree(d / "t.model", mine)
     shutil.copy(other / "o.model" / "model.npz", mine / "model.npz")
-    r = wb("measure", str(mine), "--point", "1,1")
+    r = cli("measure", str(mine), "--point", "1,1")
     assert r.returncode == 2 and "not this model's" in r.stderr and r.stderr.count("\n") == 1
     shutil.copy(d / "t.model" / "model.npz", mine / "model.npz")
     assert tm.load(mine).model_id == tm.load(d / "t.model").model_id

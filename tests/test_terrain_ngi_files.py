@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from launcher import DATA, wb
+from launcher import DATA, cli
 
 from workbench.errors import DataWarning, WorkbenchError
 from workbench.experiments.terrain import ngi, ngi_interior, ngi_orientation
@@ -111,7 +111,7 @@ def test_csv_stands_in_for_a_missing_text_file(tmp_path):
 def test_cut_orientation_through_the_command_line(tmp_path):
     """No DEM or frames needed: the orientation is read first. One line on stderr, exit 2."""
     text_file(tmp_path, TEXT_ROWS[:3], tail="3324c_2015_1004_06_0253_RGB -55081.772800")
-    r = wb("terrain", "--scenario", "ngi", "--pair", "0251,0253", "--data", str(tmp_path),
+    r = cli("terrain", "--scenario", "ngi", "--pair", "0251,0253", "--data", str(tmp_path),
            "--out", str(tmp_path / "t.rrd"))
     assert r.returncode == 2, r.stderr
     assert "line 4 is cut short" in r.stderr and len(r.stderr.strip().splitlines()) == 1
@@ -176,7 +176,7 @@ def test_missing_interior_is_the_readme_camera_with_a_warning(tmp_path):
 
 def test_malformed_interior_through_the_command_line(tmp_path):
     yaml_file(tmp_path, focal="0")
-    r = wb("terrain", "--scenario", "ngi", "--data", str(tmp_path), "--out", str(tmp_path / "t.rrd"))
+    r = cli("terrain", "--scenario", "ngi", "--data", str(tmp_path), "--out", str(tmp_path / "t.rrd"))
     assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1, r.stderr
     assert "focal_len must be positive" in r.stderr and not (tmp_path / "t.rrd").exists()
 

@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from launcher import DATA, wb
+from launcher import DATA, cli, wb
 
 import workbench
 from workbench.errors import DataWarning, WorkbenchError
@@ -382,7 +382,7 @@ def test_ambiguous_through_the_command_line(tmp_path, logs):
     bad = tmp_path / "ais.csv"
     bad.write_text("\n".join(text) + "\n")
     out = tmp_path / "a.rrd"
-    r = wb("sea", "--scenario", "ais", "--data", str(bad), "--mmsi", "235001", "--out", str(out))
+    r = cli("sea", "--scenario", "ais", "--data", str(bad), "--mmsi", "235001", "--out", str(out))
     said = r.stderr.strip()
     assert r.returncode == 2 and "\n" not in said and "Traceback" not in said, said
     assert "ais.csv, line 4: 7 fields, the header has 6" in said and not out.exists()
@@ -392,7 +392,7 @@ def test_ambiguous_through_the_command_line(tmp_path, logs):
     odo = (folder / "odometry.csv").read_text().splitlines()
     odo[5] = odo[5].replace(",", ";")
     (folder / "odometry.csv").write_text("\n".join(odo) + "\n")
-    r = wb("omni", "--scenario", "log", "--data", str(folder), "--out", str(out))
+    r = cli("omni", "--scenario", "log", "--data", str(folder), "--out", str(out))
     said = r.stderr.strip()
     assert r.returncode == 2 and "\n" not in said and "Traceback" not in said, said
     assert "odometry.csv, line 6: separated by ';' where the file is by ','" in said and not out.exists()

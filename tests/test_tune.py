@@ -13,7 +13,7 @@ import tomllib
 import numpy as np
 import pyarrow.parquet as pq
 import pytest
-from launcher import wb
+from launcher import cli, wb
 
 from workbench.tuning import files as studies
 
@@ -106,7 +106,7 @@ def test_the_pool_and_a_local_cluster_give_the_same_trials(tmp_path):
 ])
 def test_bad_input_is_one_line_and_touches_nothing(tmp_path, args, said):
     out = tmp_path / "study"
-    r = wb("tune", "sea", *args, "--trials", "2", "--out", str(out))
+    r = cli("tune", "sea", *args, "--trials", "2", "--out", str(out))
     assert r.returncode == 2 and said in r.stderr, r.stderr
     assert "\n" not in r.stderr.strip() and "Traceback" not in r.stderr
     assert not out.exists()
@@ -117,7 +117,7 @@ def test_a_resume_with_another_space_or_an_objective_needing_truth_touches_nothi
     assert wb("tune", "sea", "--param", "sigma-acc=0.01:1:log", "--trials", "2", "--batch", "2", "--jobs", "1",
               "--out", str(out), *SMALL).returncode == 0
     listing = {p: p.stat().st_mtime_ns for p in out.rglob("*")}
-    r = wb("tune", "sea", "--param", "sigma-acc=0.01:2:log", "--trials", "2", "--batch", "2", "--jobs", "1",
+    r = cli("tune", "sea", "--param", "sigma-acc=0.01:2:log", "--trials", "2", "--batch", "2", "--jobs", "1",
            "--out", str(out), "--resume", *SMALL)
     assert r.returncode == 2 and "holds another study (its space differ)" in r.stderr, r.stderr
     assert {p: p.stat().st_mtime_ns for p in out.rglob("*")} == listing
@@ -125,7 +125,7 @@ def test_a_resume_with_another_space_or_an_objective_needing_truth_touches_nothi
     log = tmp_path / "log"
     assert wb("sea", "--duration", "20", "--export-data", str(log), "--out", str(tmp_path / "x.rrd")).returncode == 0
     (log / "truth.csv").unlink()
-    r = wb("tune", "sea", "--scenario", "log", "--set", f"data={log}", "--param", "sigma-acc=0.01:1:log",
+    r = cli("tune", "sea", "--scenario", "log", "--set", f"data={log}", "--param", "sigma-acc=0.01:1:log",
            "--objective", "nees", "--trials", "2", "--out", str(tmp_path / "t2"))
     assert r.returncode == 2 and "--objective nees needs the truth" in r.stderr, r.stderr
     assert not (tmp_path / "t2").exists()
