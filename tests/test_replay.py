@@ -262,6 +262,43 @@ def test_the_verdicts_on_hand_made_numbers():
     v = reproduce.judge(stored, fresh(a=2.001), set(), ["x"], probe=probe_of(a=2.001),
                         errors=lambda: {"estimators.a.rmse": 1.0})
     assert v.outcome == "differs" and [n.path for n in v.differs] == ["estimators.a.rmse"]
+    # ... unless the recording machine's kernels, set here, give the recorded figures: then the
+    # difference is the machine's arithmetic (no error needed); where they give others, it is not
+    v = reproduce.judge(stored, fresh(a=2.001), set(), ["x"], probe=probe_of(a=2.001), errors=lambda: 1 / 0,
+                        emulate=lambda names: fresh())
+    assert v.outcome == "sensitive" and v.sensitive[0].emulated == 0.0 and "the machine's arithmetic" in v.lines()[1]
+    v = reproduce.judge(stored, fresh(a=2.001), set(), ["x"], probe=probe_of(a=2.001),
+                        errors=lambda: {"estimators.a.rmse": 1.0}, emulate=lambda names: fresh(a=2.001))
+    assert v.outcome == "differs"
+    v = reproduce.judge(stored, fresh(b=4.1), set(), ["x"], probe=probe_of(b=4.1), emulate=lambda names: None,
+                        errors=lambda: {"estimators.b.rmse": 0.0})   # no emulation here; an error of zero: marked
+    assert v.reproduces and v.sensitive[0].unheld and v.sensitive[0].emulated is None
+
+
+def test_the_recording_machines_kernels_are_set_here_where_this_processor_has_them():
+    """The emulation environment names the recording's OpenBLAS kernel and turns off numpy's SIMD
+    targets it did not have; a child started in it reports the recording's arithmetic (BLAS
+    kernel, SIMD targets) where this processor can run them; other library versions, no emulation."""
+    import subprocess
+    import sys
+
+    from workbench.recording import machine
+
+    here = machine.fingerprint()
+    found = kernels()
+    other = found.get("avx2", found["prescott"])
+    r = subprocess.run([sys.executable, "-c", "import json; from workbench.recording import machine; "
+                        "print(json.dumps(machine.fingerprint()))"], capture_output=True, text=True,
+                       env={**os.environ, **other})
+    recorded = json.loads(r.stdout)
+    assert not machine.same_arithmetic(recorded, here)
+    env = machine.emulation_environment(recorded)
+    assert env["OPENBLAS_CORETYPE"] == machine._numpy_kernel(recorded["blas"])
+    r = subprocess.run([sys.executable, "-c", "import json; from workbench.recording import machine; "
+                        "print(json.dumps(machine.fingerprint()))"], capture_output=True, text=True, env=env)
+    assert machine.same_arithmetic(json.loads(r.stdout), recorded), (r.stdout, recorded)
+    assert machine.emulation_environment(dict(recorded, versions={**recorded["versions"], "numpy": "1.0"})) is None
+    assert machine.emulation_environment(None) is None
 
 
 def test_the_jackknife_standard_error_of_a_mean_is_the_textbook_one():

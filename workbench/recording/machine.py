@@ -151,21 +151,64 @@ def describe(recorded: dict | None) -> list[str]:
     return lines
 
 
+def _numpy_kernel(blas_text: str) -> str | None:
+    """The OpenBLAS kernel numpy used, from a fingerprint's ``blas`` (``numpy: openblas 0.3.31 Haswell; ...``)."""
+    for part in str(blas_text).split(";"):
+        name, _, rest = part.strip().partition(": ")
+        if name == "numpy" and rest.startswith("openblas") and len(rest.split()) >= 3:
+            return rest.split()[-1]
+    return None
+
+
+def emulation_environment(recorded: dict | None, base: dict[str, str] | None = None) -> dict[str, str] | None:
+    """An environment in which this processor does its arithmetic as the recording's machine did:
+    numpy's OpenBLAS kernel set to the one the recording names, numpy's SIMD targets the recording
+    did not have turned off, the recording's own overrides (``OPENBLAS_L2_SIZE``, ``NUMBA_CPU_NAME``)
+    as they were. ``None`` where it cannot be: no machine stored, another OpenBLAS, another Python
+    or other library versions (the same kernels would not be the same code). Whether this processor
+    can run them is for the process started in it to say (:func:`same_arithmetic`)."""
+    if recorded is None:
+        return None
+    here = fingerprint()
+    kernel = _numpy_kernel(recorded.get("blas", ""))
+    if kernel is None or recorded.get("versions") != here["versions"] or recorded.get("python") != here["python"]:
+        return None
+    env = {k: v for k, v in (os.environ if base is None else base).items() if k not in OVERRIDES}
+    env.update({k: v for k, v in recorded.get("overrides", {}).items() if k in OVERRIDES})
+    env["OPENBLAS_CORETYPE"] = kernel
+    try:
+        from numpy._core._multiarray_umath import __cpu_dispatch__
+    except ImportError:  # numpy 1.x
+        from numpy.core._multiarray_umath import __cpu_dispatch__
+    off = [t for t in __cpu_dispatch__ if t not in set(recorded.get("numpy_simd", []))]
+    if off:
+        env["NPY_DISABLE_CPU_FEATURES"] = " ".join(off)
+    return env
+
+
+def same_arithmetic(a: dict, b: dict) -> bool:
+    """Whether two fingerprints choose the same kernels: BLAS and its kernel, numpy's SIMD targets,
+    the library versions (the processor's name aside)."""
+    return all(a.get(k) == b.get(k) for k in ("blas", "numpy_simd", "python", "versions"))
+
+
 def perturbed_environments(base: dict[str, str] | None = None) -> list[dict[str, str]]:
     """Two environments whose arithmetic differs from this process's in the last bits, on this same
     machine, for a replay to see which estimators amplify them (two, because a chaotic estimator
     shows it under one perturbation and hardly under another: measured, omni's iSAM2 moved 1.4e-6
-    under the first and 1.3e-4 under the second):
+    under one and 1.3e-4 under another):
 
-    1. the oldest OpenBLAS kernel (Prescott, SSE3; OpenBLAS reports it as Katmai), numpy's SIMD
-       targets all off (its baseline loops), numba compiled for a generic processor;
-    2. an AVX kernel (Sandybridge; Haswell where this process runs Sandybridge already), numpy's
-       widest SIMD level off (its AVX-512 loops, or AVX2's where there are none), numba as here.
+    1. the oldest OpenBLAS kernel this process does not run (Prescott, SSE3, which OpenBLAS reports
+       as Katmai; else Sandybridge), numpy's SIMD targets all off (its baseline loops), numba
+       compiled for a generic processor;
+    2. another of the kernels this processor can run (Haswell, SkylakeX, Sandybridge: the first
+       that is neither this process's nor the first's), numpy's widest SIMD level off (its
+       AVX-512 loops, or AVX2's where there are none), numba as here.
 
     On a processor other than x86-64 the kernels are left alone and the SIMD and numba changes
     made."""
     env = dict(os.environ if base is None else base)
-    current = blas()
+    current = _numpy_kernel(blas()) or ""
     _, flags = _processor()
     targets = numpy_simd()
     wide = [t for t in targets if t.startswith("AVX512") or t == "X86_V4"] or targets[-1:]
@@ -175,8 +218,14 @@ def perturbed_environments(base: dict[str, str] | None = None) -> list[dict[str,
         second["NPY_DISABLE_CPU_FEATURES"] = " ".join(wide)
     first["NUMBA_CPU_NAME"] = "generic"
     if platform.machine() in ("x86_64", "AMD64"):
-        first["OPENBLAS_CORETYPE"] = "Sandybridge" if ("Prescott" in current or "Katmai" in current) \
-            and "avx" in flags else "Prescott"
-        if "avx" in flags:
-            second["OPENBLAS_CORETYPE"] = "Haswell" if "Sandybridge" in current and "avx2" in flags else "Sandybridge"
+        runnable = ["Prescott"] + (["Sandybridge"] if "avx" in flags else []) + \
+                   (["Haswell"] if "avx2" in flags and "fma" in flags else []) + \
+                   (["SkylakeX"] if "avx512f" in flags else [])
+        taken = {current, "Prescott" if current == "Katmai" else current}
+        one = next((k for k in runnable if k not in taken), None)
+        two = next((k for k in reversed(runnable) if k not in taken | {one}), None)
+        if one:
+            first["OPENBLAS_CORETYPE"] = one
+        if two:
+            second["OPENBLAS_CORETYPE"] = two
     return [first, second]

@@ -178,8 +178,10 @@ def rerun(stored: Stored, jobs: int | None = None, only: list[str] | None = None
 def replay(stored: Stored, jobs: int | None = None, probe: bool = True):
     """Run the recording's experiment again and judge every stored number
     (:func:`.reproduce.judge`): the same bits, the same to floating point, or different. On another
-    machine an estimator whose figures moved beyond floating point is run again here with the
-    arithmetic perturbed (``probe``); where that moves it too it is held to its Monte Carlo error."""
+    machine (``probe``) an estimator whose figures moved beyond floating point is run again here
+    under the recording machine's kernels where this processor has them (its figures then the
+    recorded ones: the machine's arithmetic explains the difference), and otherwise with the
+    arithmetic perturbed: where that moves it too it is held to its Monte Carlo error."""
     from workbench.experiments import figures
     from workbench.recording import machine
     from workbench.tools import reproduce
@@ -201,32 +203,52 @@ def replay(stored: Stored, jobs: int | None = None, probe: bool = True):
     def perturbed(names: list[str] | None) -> list[dict]:
         return perturbed_metrics(stored.path, names, jobs)
 
+    def emulated(names: list[str] | None) -> dict | None:
+        return emulated_metrics(stored, names, jobs)
+
     return reproduce.judge(stored.metrics, fresh, IGNORED, machine.differences(stored.machine, here),
-                           probe=perturbed if probe else None, errors=errors)
+                           probe=perturbed if probe else None, errors=errors, emulate=emulated if probe else None)
+
+
+def _child_run(recording: Path, env: dict[str, str], estimators: list[str] | None, jobs: int | None) -> dict:
+    """The recording's run again (``estimators`` alone, or all) in a child process with ``env``:
+    ``{"metrics": ..., "machine": ...}`` (the child's own fingerprint)."""
+    import subprocess
+    import sys
+    import tempfile
+
+    with tempfile.TemporaryDirectory(prefix="workbench-probe-") as d:
+        path = Path(d) / "metrics.json"
+        args = [sys.executable, "-m", "workbench.tools.provenance", str(recording), str(path),
+                str(jobs or 0), ",".join(estimators or [])]
+        r = subprocess.run(args, env=env, capture_output=True, text=True)
+        if r.returncode != 0 or not path.exists():
+            last = (r.stderr.strip().splitlines() or ["no output"])[-1]
+            raise WorkbenchError(f"the re-run of {recording} under other kernels failed: {last}")
+        return json.loads(path.read_text())
 
 
 def perturbed_metrics(recording: Path, estimators: list[str] | None = None, jobs: int | None = None) -> list[dict]:
     """The recording's run again (``estimators`` alone, or all) in child processes whose arithmetic
     differs here in the last bits (:func:`workbench.recording.machine.perturbed_environments`):
     their metrics JSON, for :func:`.reproduce.judge`'s ``probe``."""
-    import subprocess
-    import sys
-    import tempfile
-
     from workbench.recording import machine
 
-    out = []
-    with tempfile.TemporaryDirectory(prefix="workbench-probe-") as d:
-        for i, env in enumerate(machine.perturbed_environments()):
-            path = Path(d) / f"metrics{i}.json"
-            args = [sys.executable, "-m", "workbench.tools.provenance", str(recording), str(path),
-                    str(jobs or 0), ",".join(estimators or [])]
-            r = subprocess.run(args, env=env, capture_output=True, text=True)
-            if r.returncode != 0 or not path.exists():
-                last = (r.stderr.strip().splitlines() or ["no output"])[-1]
-                raise WorkbenchError(f"the perturbed run of {recording} failed: {last}")
-            out.append(json.loads(path.read_text()))
-    return out
+    return [_child_run(recording, env, estimators, jobs)["metrics"] for env in machine.perturbed_environments()]
+
+
+def emulated_metrics(stored: Stored, estimators: list[str] | None = None, jobs: int | None = None) -> dict | None:
+    """The recording's run again under its own machine's kernels and SIMD loops, set on this one
+    (:func:`workbench.recording.machine.emulation_environment`): its metrics JSON, or ``None`` where
+    that cannot be done (no machine stored, other library versions, a kernel or SIMD level this
+    processor lacks: the child's own fingerprint says so). For :func:`.reproduce.judge`'s ``emulate``."""
+    from workbench.recording import machine
+
+    env = machine.emulation_environment(stored.machine)
+    if env is None:
+        return None
+    out = _child_run(stored.path, env, estimators, jobs)
+    return out["metrics"] if machine.same_arithmetic(out["machine"], stored.machine) else None
 
 
 def _main(argv: list[str]) -> int:
@@ -236,8 +258,10 @@ def _main(argv: list[str]) -> int:
     stored = read(Path(argv[0]))
     jobs = int(argv[2]) if len(argv) > 2 and int(argv[2]) > 0 else None
     names = [n for n in argv[3].split(",") if n] if len(argv) > 3 else []
+    from workbench.recording import machine
+
     fresh, _, _ = rerun(stored, jobs, names or None)
-    Path(argv[1]).write_text(json.dumps(fresh, default=str))
+    Path(argv[1]).write_text(json.dumps({"metrics": fresh, "machine": machine.fingerprint()}, default=str))
     return 0
 
 

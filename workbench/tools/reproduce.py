@@ -143,8 +143,15 @@ class Sensitive:
     worst_se: float | None            # the largest |stored - replayed| / standard error among those held
     beyond_se: list[Number]           # those beyond SE_LIMIT standard errors (differences)
     unheld: list[Number]              # those with no Monte Carlo error (one run; a figure of a figure)
+    emulated: float | None = None     # the largest difference from the recording under its machine's kernels
 
     def line(self) -> str:
+        if self.emulated is not None:
+            how = "to the last bit" if self.emulated == 0.0 else f"within {self.emulated:.1e} relative"
+            return (f"{self.group}: {len(self.differing)} figure(s) differ on this machine's own kernels (by up to "
+                    f"{max(n.relative for n in self.differing):.1e} relative); replayed here under the recording "
+                    f"machine's kernels and SIMD loops they are the recorded ones {how}: the difference is the "
+                    "machine's arithmetic, which this estimator amplifies")
         head = (f"{self.group}: sensitive to its last bits (runs here with other BLAS kernels and "
                 f"numpy's SIMD loops moved it by up to {self.probe_move:.1e} relative); "
                 f"{len(self.differing)} figure(s) differ from the recording's")
@@ -212,7 +219,8 @@ class Verdict:
             held = sum(len(s.differing) for s in self.sensitive)
             out = [f"reproduces, but for estimators that amplify their last bits: {self.compared - held} of "
                    f"{self.compared} numbers within {FLOAT_TOLERANCE:g} relative, {held} of "
-                   + ", ".join(s.group for s in self.sensitive) + " held to their Monte Carlo error"]
+                   + ", ".join(s.group for s in self.sensitive) + " explained by the machine or held to their "
+                   "Monte Carlo error"]
         out += [f"  {s.line()}" for s in self.sensitive]
         if self.machine:
             out.append("recorded on another machine: " + "; ".join(self.machine))
@@ -223,13 +231,18 @@ class Verdict:
 
 
 def judge(stored: dict, fresh: dict, ignored: set[str], machine_differs: list[str],
-          probe: Any = None, errors: Any = None) -> Verdict:
+          probe: Any = None, errors: Any = None, emulate: Any = None) -> Verdict:
     """The verdict on a replay's ``fresh`` metrics against the ``stored`` ones.
 
-    ``probe(estimators)`` gives the metrics of the same run with the arithmetic perturbed here
-    (of those estimators alone; ``None``: all), and ``errors()`` the replay's Monte Carlo standard
-    errors (path -> error); both are called only when needed: on another machine, with
-    differences beyond floating point."""
+    On another machine, with differences beyond floating point (nothing is called otherwise):
+    ``emulate(None)`` gives the metrics of the same run (every estimator: some figures compare a
+    filter with a smoother) under the recording machine's kernels and SIMD loops set here, or
+    ``None`` where this processor cannot run them; an estimator whose figures are then the
+    recorded ones to floating point differs only by the machine's arithmetic. For the rest,
+    ``probe(estimators)`` gives the metrics of runs with the arithmetic perturbed here (a list),
+    and ``errors()`` the replay's
+    Monte Carlo standard errors (path -> error): an estimator the perturbations move amplifies
+    its last bits and is held to its errors; one they do not is a difference."""
     compared = numbers(stored, fresh, ignored)
     changed = [n for n in compared if not _bits_equal(n)]
     largest = max(changed, key=lambda n: n.relative) if changed else None
@@ -239,14 +252,30 @@ def judge(stored: dict, fresh: dict, ignored: set[str], machine_differs: list[st
     by_group: dict[str, list[Number]] = {}
     for n in beyond:
         by_group.setdefault(n.group, []).append(n)
-    names = [g.split(".", 1)[1] for g in by_group if g.startswith("estimators.")]
+
+    def names_of(groups: Any) -> list[str] | None:
+        names = [g.split(".", 1)[1] for g in groups if g.startswith("estimators.")]
+        return names if len(names) == len(groups) else None
+
+    sensitive: list[Sensitive] = []
+    emulated = emulate(None) if emulate is not None else None  # every estimator: some figures compare two
+    if emulated is not None:
+        for group in list(by_group):
+            items = by_group[group]
+            again = {n.path: n for n in numbers(stored, emulated, ignored) if n.group == group}
+            if all(n.path in again and again[n.path].relative <= FLOAT_TOLERANCE for n in items):
+                worst = max(again[n.path].relative for n in items)
+                sensitive.append(Sensitive(group, 0.0, items, None, [], [], emulated=worst))
+                del by_group[group]
+    if not by_group:
+        return Verdict(len(compared), largest, beyond, machine_differs, sensitive, [])
     moved: dict[str, float] = {}
-    for other in probe(names if len(names) == len(by_group) else None):
+    for other in probe(names_of(by_group)):
         for n in numbers(fresh, other, ignored):
             if n.fresh is not _MISSING:
                 moved[n.group] = max(moved.get(n.group, 0.0), n.relative)
     se = None
-    sensitive, differs = [], []
+    differs = []
     for group, items in by_group.items():
         if moved.get(group, 0.0) <= SENSITIVE or any(n.fresh is _MISSING for n in items):
             differs += items
@@ -257,10 +286,10 @@ def judge(stored: dict, fresh: dict, ignored: set[str], machine_differs: list[st
             e = se.get(n.path)
             if not (_number(n.stored) and _number(n.fresh)):
                 over.append(n)  # a text or a count of another kind: nothing to hold it to
-            elif e is None or not math.isfinite(e):
-                unheld.append(n)
+            elif e is None or not math.isfinite(e) or e <= 0.0:
+                unheld.append(n)  # (a zero error: every subset of the runs gave the same figure, no spread to go by)
             else:
-                r = abs(float(n.stored) - float(n.fresh)) / e if e > 0 else math.inf
+                r = abs(float(n.stored) - float(n.fresh)) / e
                 ratios.append(r)
                 if r > SE_LIMIT:
                     over.append(n)
