@@ -82,17 +82,16 @@ def kernels() -> dict[str, dict[str, str]]:
     ``prescott`` an SSE3-era one, ``skylakex`` an AVX-512 one, each where this processor can run it."""
     from workbench.recording import machine
 
-    _, flags = machine._processor()
+    runnable = machine.runnable_kernels()
     simd = machine.numpy_simd()
     wide = [t for t in simd if t.startswith("AVX512") or t == "X86_V4"]
-    out = {"prescott": {"OPENBLAS_CORETYPE": "Prescott", "NUMBA_CPU_NAME": "generic",
-                        **({"NPY_DISABLE_CPU_FEATURES": " ".join(simd)} if simd else {})}}
-    if "avx" in flags:
-        out["sandybridge"] = {"OPENBLAS_CORETYPE": "Sandybridge", "NUMBA_CPU_NAME": "sandybridge",
-                              **({"NPY_DISABLE_CPU_FEATURES": " ".join(simd)} if simd else {})}
-    if "avx2" in flags and "fma" in flags:
+    off = {"NPY_DISABLE_CPU_FEATURES": " ".join(simd)} if simd else {}
+    out = {"prescott": {"OPENBLAS_CORETYPE": "Prescott", "NUMBA_CPU_NAME": "generic", **off}}
+    if "Sandybridge" in runnable:
+        out["sandybridge"] = {"OPENBLAS_CORETYPE": "Sandybridge", "NUMBA_CPU_NAME": "sandybridge", **off}
+    if "Haswell" in runnable:
         out["avx2"] = {"OPENBLAS_CORETYPE": "Haswell", "NUMBA_CPU_NAME": "haswell",
                        **({"NPY_DISABLE_CPU_FEATURES": " ".join(wide)} if wide else {})}
-    if "avx512f" in flags:
+    if "SkylakeX" in runnable:
         out["skylakex"] = {"OPENBLAS_CORETYPE": "SkylakeX"}
     return out

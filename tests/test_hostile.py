@@ -19,20 +19,17 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
+import launcher
 import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from launcher import ctrl_c_as_a_terminal
-from typer.testing import CliRunner
 
 from workbench import api
-from workbench.cli import run_cli
 from workbench.errors import WorkbenchError
 from workbench.experiments import all_experiments
 from workbench.recording import stream
-
-RUNNER = CliRunner()
 
 
 @dataclass
@@ -43,12 +40,9 @@ class Ran:
 
 
 def cli(*args: str) -> Ran:
-    """The command line in this process, as ``workbench ARGS`` runs it (:func:`run_cli`)."""
-    with RUNNER.isolation() as (out, err, _):
-        code = run_cli(list(args))
-        sys.stdout.flush()
-        sys.stderr.flush()
-        return Ran(code, out.getvalue().decode(), err.getvalue().decode())
+    """The command line in this process, as ``workbench ARGS`` runs it (:func:`launcher.cli`)."""
+    r = launcher.cli(*args)
+    return Ran(r.returncode, r.stdout, r.stderr)
 
 
 def one_line_error(result) -> str:

@@ -62,22 +62,17 @@ def _processor() -> tuple[str, list[str]]:
 
 
 def blas() -> str:
-    """The BLAS libraries numpy and scipy use and the kernel each chose here, e.g. ``numpy: openblas
-    0.3.31 SkylakeX; scipy: openblas 0.3.30 SkylakeX`` (each wheel brings its own)."""
-    import numpy  # noqa: F401  (threadpoolctl finds the BLAS libraries loaded: numpy's and scipy's)
-    import scipy.linalg  # noqa: F401
+    """The BLAS numpy uses and the kernel it chose here, e.g. ``numpy: openblas 0.3.31 SkylakeX``.
+    (scipy's own OpenBLAS picks its kernel by the same processor and variables, and its version
+    goes with scipy's: asking threadpoolctl for it would mean importing ``scipy.linalg``, 0.14 s of
+    every recorded run.)"""
+    import numpy  # noqa: F401  (threadpoolctl finds the BLAS libraries loaded)
     from threadpoolctl import threadpool_info
 
-    found = []
     for i in threadpool_info():
-        if i.get("user_api") != "blas":
-            continue
-        where = Path(str(i.get("filepath", ""))).parent.name.removesuffix(".libs") or "?"
-        if where not in ("numpy", "scipy"):  # another wheel's own copy, loaded or not by the time of asking
-            continue
-        found.append(f"{where}: " + " ".join(str(i[k]) for k in ("internal_api", "version", "architecture")
-                                             if i.get(k)))
-    return "; ".join(sorted(found)) or "unknown"
+        if i.get("user_api") == "blas" and Path(str(i.get("filepath", ""))).parent.name == "numpy.libs":
+            return "numpy: " + " ".join(str(i[k]) for k in ("internal_api", "version", "architecture") if i.get(k))
+    return "unknown"
 
 
 def numpy_simd() -> list[str]:
@@ -192,6 +187,16 @@ def same_arithmetic(a: dict, b: dict) -> bool:
     return all(a.get(k) == b.get(k) for k in ("blas", "numpy_simd", "python", "versions"))
 
 
+def runnable_kernels() -> list[str]:
+    """The OpenBLAS x86-64 kernels this processor can run, oldest first: Prescott (SSE3), Sandybridge
+    (AVX), Haswell (AVX2, FMA), SkylakeX (AVX-512); none on another architecture."""
+    if platform.machine() not in ("x86_64", "AMD64"):
+        return []
+    _, flags = _processor()
+    return ["Prescott"] + (["Sandybridge"] if "avx" in flags else []) + \
+        (["Haswell"] if "avx2" in flags and "fma" in flags else []) + (["SkylakeX"] if "avx512f" in flags else [])
+
+
 def perturbed_environments(base: dict[str, str] | None = None) -> list[dict[str, str]]:
     """Two environments whose arithmetic differs from this process's in the last bits, on this same
     machine, for a replay to see which estimators amplify them (two, because a chaotic estimator
@@ -209,7 +214,6 @@ def perturbed_environments(base: dict[str, str] | None = None) -> list[dict[str,
     made."""
     env = dict(os.environ if base is None else base)
     current = _numpy_kernel(blas()) or ""
-    _, flags = _processor()
     targets = numpy_simd()
     wide = [t for t in targets if t.startswith("AVX512") or t == "X86_V4"] or targets[-1:]
     first, second = dict(env), dict(env)
@@ -218,9 +222,7 @@ def perturbed_environments(base: dict[str, str] | None = None) -> list[dict[str,
         second["NPY_DISABLE_CPU_FEATURES"] = " ".join(wide)
     first["NUMBA_CPU_NAME"] = "generic"
     if platform.machine() in ("x86_64", "AMD64"):
-        runnable = ["Prescott"] + (["Sandybridge"] if "avx" in flags else []) + \
-                   (["Haswell"] if "avx2" in flags and "fma" in flags else []) + \
-                   (["SkylakeX"] if "avx512f" in flags else [])
+        runnable = runnable_kernels()
         taken = {current, "Prescott" if current == "Katmai" else current}
         one = next((k for k in runnable if k not in taken), None)
         two = next((k for k in reversed(runnable) if k not in taken | {one}), None)

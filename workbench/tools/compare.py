@@ -300,16 +300,9 @@ def differences(runs: list[Run], compared: tuple[str, ...], pairs: list[tuple[st
 
 # --- the results -----------------------------------------------------------------------------------
 
-def _numbers(tree, path: str = "") -> dict[str, float]:
-    if isinstance(tree, dict):
-        out = {}
-        for k, v in tree.items():
-            if k not in provenance.IGNORED:
-                out.update(_numbers(v, f"{path}.{k}" if path else str(k)))
-        return out
-    if isinstance(tree, (int, float)) and not isinstance(tree, bool) and math.isfinite(tree):
-        return {path: float(tree)}
-    return {}
+def _numbers(tree) -> dict[str, float]:
+    """The finite figures of a metrics tree by path (lists, such as bands, left out)."""
+    return {k: v for k, v in reproduce.flatten(tree, provenance.IGNORED, lists=False).items() if math.isfinite(v)}
 
 
 def results_text(runs: list[Run], pairs: list[tuple[str, str]], limit: int = 60) -> str:

@@ -204,7 +204,6 @@ class Verdict:
     def lines(self) -> list[str]:
         """What ``workbench replay`` prints: the outcome line first."""
         where = f" (the largest, {self.largest.relative:.1e}, in {self.largest.path})" if self.largest else ""
-        within = [n for n in (self.largest,) if n is not None and n.relative <= FLOAT_TOLERANCE]
         if self.differs:
             groups: dict[str, int] = {}
             for n in self.differs:
@@ -216,7 +215,7 @@ class Verdict:
             out = [f"reproduces: the same bits, all {self.compared} numbers (timings aside)"]
         elif not self.sensitive:
             out = [f"reproduces to floating point: all {self.compared} numbers within {FLOAT_TOLERANCE:g} "
-                   f"relative{where if within else ''}, timings aside"]
+                   f"relative{where}, timings aside"]
         else:
             held = sum(len(s.differing) for s in self.sensitive)
             out = [f"reproduces, but for estimators that amplify their last bits: {self.compared - held} of "
@@ -300,15 +299,17 @@ def judge(stored: dict, fresh: dict, ignored: set[str], machine_differs: list[st
     return Verdict(len(compared), largest, beyond, machine_differs, sensitive, differs)
 
 
-def flatten(x: Any, path: str = "") -> dict[str, float]:
-    """The metrics JSON's numbers by path (as :func:`numbers` names them)."""
+def flatten(x: Any, ignored: Any = (), lists: bool = True, path: str = "") -> dict[str, float]:
+    """The metrics JSON's numbers by path (as :func:`numbers` names them): keys in ``ignored`` left
+    out, lists descended into where ``lists``."""
     out: dict[str, float] = {}
     if isinstance(x, dict):
         for k, v in x.items():
-            out.update(flatten(v, f"{path}.{k}" if path else str(k)))
-    elif isinstance(x, list):
+            if k not in ignored:
+                out.update(flatten(v, ignored, lists, f"{path}.{k}" if path else str(k)))
+    elif isinstance(x, list) and lists:
         for i, v in enumerate(x):
-            out.update(flatten(v, f"{path}[{i}]"))
+            out.update(flatten(v, ignored, lists, f"{path}[{i}]"))
     elif _number(x):
         out[path] = float(x)
     return out
