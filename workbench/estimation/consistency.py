@@ -32,11 +32,23 @@ import numpy as np
 class Innovations:
     """A filter's innovations, one row per measurement it was handed: the time ``t (M,)`` (s),
     the innovation ``nu (M, m)`` (measurement minus its prediction; angles wrapped) and its
-    predicted covariance ``S (M, m, m)``. A NaN row is a measurement the filter left out (a gate)."""
+    predicted covariance ``S (M, m, m)``. A NaN row is a measurement the filter left out with no
+    innovation (a failed update).
+
+    Optional, for the truth-free diagnosis (:mod:`workbench.experiments.diagnosis`): ``kept (M,)``,
+    False for a measurement the filter left out although it had its innovation (a gate: the row
+    keeps the innovation it was judged on, so what the gate dropped can be weighed too); ``R (M,
+    m, m)``, the measurement noise part of each ``S`` (the rest is the state's predicted
+    uncertainty, ``H P H'``: the two tell a too narrow motion noise from a too narrow measurement
+    noise); ``gate``, the probability of the filter's chi-square gate (0.99: it expects to leave 1 %
+    of the measurements out), None without a gate."""
 
     t: np.ndarray
     nu: np.ndarray
     S: np.ndarray
+    kept: np.ndarray | None = None
+    R: np.ndarray | None = None
+    gate: float | None = None
 
     def __post_init__(self) -> None:
         self.t = np.asarray(self.t, float).ravel()
@@ -44,20 +56,59 @@ class Innovations:
         m = nu.shape[-1] if nu.ndim == 2 else max(1, nu.size // max(len(self.t), 1))
         self.nu = nu.reshape(len(self.t), m)
         self.S = np.asarray(self.S, float).reshape(len(self.t), m, m)
+        if self.kept is not None:
+            self.kept = np.asarray(self.kept, bool).ravel()
+        if self.R is not None:
+            self.R = np.asarray(self.R, float).reshape(len(self.t), m, m)
 
     @classmethod
-    def scalar(cls, t: np.ndarray, nu: np.ndarray, var: np.ndarray) -> Innovations:
-        """Scalar measurements (a bearing): innovations and their variances."""
-        return cls(t, np.asarray(nu, float)[:, None], np.asarray(var, float)[:, None, None])
+    def scalar(cls, t: np.ndarray, nu: np.ndarray, var: np.ndarray, kept: np.ndarray | None = None,
+               r: np.ndarray | None = None, gate: float | None = None) -> Innovations:
+        """Scalar measurements (a bearing): innovations and their variances (``r``: the
+        measurement noise's part of each)."""
+        return cls(t, np.asarray(nu, float)[:, None], np.asarray(var, float)[:, None, None], kept,
+                   None if r is None else np.asarray(r, float)[:, None, None], gate)
 
     @property
     def dimension(self) -> int:
         return int(self.nu.shape[1])
 
     @property
+    def finite(self) -> np.ndarray:
+        """The measurements with an innovation (used or gated)."""
+        return np.isfinite(self.nu).all(axis=1) & np.isfinite(self.S).all(axis=(1, 2))
+
+    @property
     def used(self) -> np.ndarray:
         """The measurements the filter used (not left out)."""
-        return np.isfinite(self.nu).all(axis=1) & np.isfinite(self.S).all(axis=(1, 2))
+        ok = self.finite
+        return ok if self.kept is None else ok & self.kept
+
+    def nis_all(self) -> np.ndarray:
+        """``nu' S^-1 nu`` of every measurement with an innovation, the ones a gate left out too
+        (NaN where there is none or ``S`` is not positive definite)."""
+        out = np.full(len(self.t), np.nan)
+        ok = self.finite
+        if ok.any():
+            S = 0.5 * (self.S[ok] + np.swapaxes(self.S[ok], -1, -2))
+            pd = np.linalg.eigvalsh(S).min(axis=-1) > 0
+            idx = np.flatnonzero(ok)[pd]
+            solved = np.linalg.solve(self.S[idx], self.nu[idx][..., None])[..., 0]
+            out[idx] = np.einsum("ki,ki->k", self.nu[idx], solved)
+        return out
+
+    def state_share(self) -> np.ndarray | None:
+        """Each measurement's share of its innovation covariance that is the state's predicted
+        uncertainty, ``tr((S - R) S^-1) / m`` (0: all measurement noise, 1: all the state's), or
+        None where ``R`` is not given."""
+        if self.R is None:
+            return None
+        out = np.full(len(self.t), np.nan)
+        ok = self.finite & np.isfinite(self.R).all(axis=(1, 2))
+        if ok.any():
+            RS = np.linalg.solve(self.S[ok], self.R[ok])  # S^-1 R: its trace over m is R's share
+            out[ok] = 1.0 - np.trace(RS, axis1=1, axis2=2) / self.dimension
+        return np.clip(out, 0.0, 1.0)
 
     @property
     def valid(self) -> np.ndarray:
@@ -177,3 +228,32 @@ def below(P_f: np.ndarray, P_s: np.ndarray, tolerance: float = 1e-6) -> np.ndarr
         scale = np.maximum(np.abs(P_f[ok]).max(axis=(1, 2)), np.abs(P_s[ok]).max(axis=(1, 2)))
         out[ok] = (np.linalg.eigvalsh(C).min(axis=-1) < -tolerance * scale).astype(float)
     return out
+
+
+@dataclass
+class Residuals:
+    """A least-squares smoother's residuals at its answer, one row per measurement or constraint
+    it was handed, by group (``"odometry"``, ``"bearing"``): ``group (M,)`` its name, ``r2 (M,)``
+    the squared whitened residual ``r' R^-1 r`` at the answer (NaN where it has none: a bearing of a
+    landmark not in the map), ``dof (M,)`` its dimension, ``used (M,)`` whether the fit counted it
+    (False: a gate left it out; its ``r2`` is still the answer's residual), ``redundancy``: each
+    group's redundancy number over the rows used, ``sum (1 - h_ii)`` with ``h_ii`` the hat matrix's
+    diagonal (Förstner 1979: the expectation of the group's ``sum r2`` at a consistent answer; the
+    groups' redundancies add up to the residuals less the unknowns), and ``gate``: the probability
+    of the smoother's chi-square gate, None without one; ``measurement``: the group whose rows are
+    the measurements (the ones a gate judges, whose tails the diagnosis weighs)."""
+
+    group: np.ndarray
+    r2: np.ndarray
+    dof: np.ndarray
+    used: np.ndarray
+    redundancy: dict[str, float]
+    gate: float | None = None
+    measurement: str = "bearing"
+
+    def __post_init__(self) -> None:
+        self.group = np.asarray(self.group).astype(str).ravel()
+        self.r2 = np.asarray(self.r2, float).ravel()
+        self.dof = np.asarray(self.dof, int).ravel()
+        self.used = np.asarray(self.used, bool).ravel()
+        self.redundancy = {str(k): float(v) for k, v in self.redundancy.items()}

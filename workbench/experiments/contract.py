@@ -48,7 +48,7 @@ from pathlib import Path
 from typing import Any
 
 from workbench.errors import WorkbenchError
-from workbench.experiments import figures, markdown, metric, truthfree
+from workbench.experiments import diagnosis, figures, markdown, metric, truthfree
 from workbench.experiments.estimator import Estimator, RunContext, estimate_all, resolve
 from workbench.experiments.settings import COMMON, Option, Scenario, config_json
 
@@ -125,6 +125,7 @@ class RunSummary:
     failed: dict[str, str] = field(default_factory=dict, kw_only=True)
     metrics: dict[str, dict[str, metric.Values]] = field(default_factory=dict, kw_only=True)
     metric_failures: dict[str, str] = field(default_factory=dict, kw_only=True)
+    evidence: dict[str, Any] = field(default_factory=dict, kw_only=True)  # estimator -> its truth-free evidence
 
 
 def run_estimators(exp: Experiment, cfg: Any, run: int, estimators: list[Estimator], data: Any,
@@ -318,8 +319,14 @@ class Experiment:
         summary = self.role("evaluate").summarise(result, cfg, run)
         ctx = metric.MetricContext(cfg, run, estimates=result.estimates, estimators=result.estimators,
                                    products=result.products, cache=result.cache, result=result)
-        summary.metrics, summary.metric_failures = metric.evaluate(self.metrics(cfg), result.data, result.estimates,
-                                                                   ctx)
+        metrics = self.metrics(cfg)
+        summary.metrics, summary.metric_failures = metric.evaluate(metrics, result.data, result.estimates, ctx)
+        dimension = next((m.dimension or 0 for m in metrics if m.name == "disagreement"), 0)
+        residual = next((m.name for m in metrics if m.evidence), None)
+        for name, est in result.estimates.items():
+            ev = diagnosis.evidence(est, summary.metrics.get(name), dimension, residual)
+            if ev is not None:
+                summary.evidence[name] = ev
         return summary
 
     def run_metrics(self, summary: RunSummary, cfg: Any) -> dict[str, dict[str, float]]:
@@ -346,8 +353,27 @@ class Experiment:
                 failed.setdefault(k, f"{why} (run {s.run})")
         if failed:
             stats["metric_failures"] = failed
+        self.diagnose(summaries, stats)
         self.role("evaluate").statistics(cfg, summaries, stats)
         return figures.add_renamed(stats, self.renamed)
+
+    def diagnose(self, summaries: list[RunSummary], stats: dict) -> None:
+        """Each estimator's truth-free diagnosis (:mod:`.diagnosis`) from the runs' pooled evidence,
+        into its entry (``diagnosis``); ``consistent_without_truth`` then also asks the diagnosis
+        to be "consistent" (what the estimator left out counts), and ``left_out_expected`` is set
+        beside ``left_out``. The package's ``metrics.NOISE_GROUPS`` names the noise groups."""
+        names = self._optional("metrics", "NOISE_GROUPS", {})
+        for name, entry in stats["estimators"].items():
+            ev = diagnosis.pool([s.evidence[name] for s in summaries if name in s.evidence])
+            found = diagnosis.diagnose(ev, names)
+            if found is None:
+                continue
+            entry["diagnosis"] = found
+            entry["left_out"] = found["left_out"]
+            entry["left_out_expected"] = found["left_out_expected"]
+            if found["verdict"] != "not enough data":
+                entry["consistent_without_truth"] = bool(entry.get("consistent_without_truth", True)
+                                                         and found["verdict"] == "consistent")
 
     def table(self, stats: dict) -> str:
         """The results table, markdown (``report.table``; without a ``report`` module the metrics'

@@ -11,6 +11,8 @@ from typing import Any
 
 import numpy as np
 
+from workbench.experiments import diagnosis
+
 
 def number(x: float | None, fmt: str = ".2f") -> str:
     """``x`` in ``fmt``; ``-`` where there is none (None, NaN)."""
@@ -141,12 +143,16 @@ def verdicts(stats: Mapping) -> list[str]:
             tests = [_test(m, e) for m, d in described.items()
                      if d.get("truth_free", False) == free and e.get(f"{m}_consistent") is not None]
             parts.append(f"{what} {'consistent' if e[key] else '**not consistent**'} ({'; '.join(tests)})")
+        found = e.get("diagnosis")
+        if found:
+            parts.insert(0, f"diagnosis **{diagnosis.line(found)}**: {found['reason']}")
         if parts:
             lines.append(f"- {name}: " + "; ".join(parts))
     if not lines:
         return []
-    return ["**Consistency**, each test at 95 %: without truth, the filters' innovations (NIS, whiteness) and "
-            "each causal estimator against the smoother; with truth, the NEES", "", *lines, ""]
+    return ["**Consistency**: the diagnosis without truth (every measurement handed counted, the ones left out "
+            "too: docs/diagnosis.md), then each test at 95 %: without truth, the filters' innovations (NIS, "
+            "whiteness) and each causal estimator against the smoother; with truth, the NEES", "", *lines, ""]
 
 
 def _test(metric: str, e: Mapping) -> str:

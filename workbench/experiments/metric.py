@@ -116,6 +116,7 @@ class Metric:
     source: str = "built-in"
     ref: str | None = None         # how another process finds it again (a spec), plugins only
     experiments: tuple[str, ...] = ()  # the experiments it applies to (empty: any whose estimates it takes)
+    evidence: bool = False         # normalised squared residuals (chi-square, their dof) the diagnosis may read
 
     def __post_init__(self) -> None:
         if not NAME.fullmatch(self.name):

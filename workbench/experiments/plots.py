@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 
 from workbench.estimation.metrics import chi2_band
-from workbench.experiments import figures, metric
+from workbench.experiments import diagnosis, figures, metric
 from workbench.recording.layout import Curves
 
 BAND = {"band_lo": "95 % low", "band_hi": "95 % high"}
@@ -168,10 +168,15 @@ def groups(estimators: Mapping[str, Any], names: Iterable[str]) -> dict[str, lis
 
 def flagged(title: str, stats: Mapping | None, truth: bool) -> str:
     """A view's title with the estimators that fail their consistency tests (``truth``: with the
-    truth, the NEES; else without it, :func:`.markdown.verdicts`) named after it."""
+    truth, the NEES; else without it, :func:`.markdown.verdicts`, each with its diagnosis) named
+    after it; with the truth, every estimator's truth-free diagnosis too (:mod:`.diagnosis`)."""
     key = "consistent_with_truth" if truth else "consistent_without_truth"
-    failing = [n for n, e in (stats or {}).get("estimators", {}).items() if e.get(key) is False]
-    return title + (f"; failing: {', '.join(failing)}" if failing else "")
+    failing = [n + ("" if truth or not e.get("diagnosis") else f" ({diagnosis.line(e['diagnosis'])})")
+               for n, e in (stats or {}).get("estimators", {}).items() if e.get(key) is False]
+    title += f"; failing: {', '.join(failing)}" if failing else ""
+    found = [f"{n} {diagnosis.line(e['diagnosis'])}" for n, e in (stats or {}).get("estimators", {}).items()
+             if e.get("diagnosis")]
+    return title + (f"; diagnosed without truth: {', '.join(found)}" if truth and found else "")
 
 
 def how_to_read(first: Any, truth: str) -> list[str]:

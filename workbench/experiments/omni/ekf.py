@@ -77,7 +77,9 @@ class BearingEkf:
         self.second_order = cfg.ekf_second_order
         self.failures = 0
         self.gated: list[int] = []  # the bearings (dataset indices) the NIS gate left out
-        self.innovations: list[tuple[float, float, float]] = []  # (t, innovation, variance), NaN: left out
+        # (t, innovation, variance, its bearing noise's part, kept): a gated bearing keeps the innovation it was
+        # judged on (kept 0), for the truth-free diagnosis; NaN: none
+        self.innovations: list[tuple[float, float, float, float, float]] = []
         self.attempts: list = []
 
     # --- (7)-(8) ---------------------------------------------------------------------------
@@ -165,8 +167,9 @@ class BearingEkf:
             keep = nu**2 / np.diag(S) <= self.gate
             if not keep.all():
                 self.gated.extend(int(i) for i in index[~keep])
-                self.innovations.extend((t, np.nan, np.nan) for _ in range(int((~keep).sum())))
-                H, nu, PH = H[keep], nu[keep], PH[:, keep]
+                self.innovations.extend((t, float(v), float(s), float(q), 0.0)
+                                        for v, s, q in zip(nu[~keep], np.diag(S)[~keep], r[~keep], strict=True))
+                H, nu, PH, r = H[keep], nu[keep], PH[:, keep], r[keep]
                 S = S[np.ix_(keep, keep)]
                 if len(nu) == 0:
                     return
@@ -175,7 +178,7 @@ class BearingEkf:
         except np.linalg.LinAlgError:
             self.failures += 1
             return
-        self._note(t, nu, S)
+        self._note(t, nu, S, r)
         x = self.x + K @ nu
         P = self.P - K @ S @ K.T
         if not (np.isfinite(x).all() and np.isfinite(P).all()):
@@ -185,15 +188,17 @@ class BearingEkf:
         self.x[2] = wrap(self.x[2])
         self.P = 0.5 * (P + P.T)
 
-    def _note(self, t: float, nu: np.ndarray, S: np.ndarray) -> None:
+    def _note(self, t: float, nu: np.ndarray, S: np.ndarray, r: np.ndarray) -> None:
         """Note the update's innovations one bearing at a time (:meth:`update`); where ``S`` is not
         positive definite (the paper's augmentation can make it so) each bearing's own ``S_ii``."""
         try:
             L = np.linalg.cholesky(S)
             seq, w = np.diag(L), np.linalg.solve(L, nu)
-            self.innovations.extend((t, float(a * b), float(a * a)) for a, b in zip(seq, w, strict=True))
+            self.innovations.extend((t, float(a * b), float(a * a), float(q), 1.0)
+                                    for a, b, q in zip(seq, w, r, strict=True))
         except np.linalg.LinAlgError:
-            self.innovations.extend((t, float(v), float(s)) for v, s in zip(nu, np.diag(S), strict=True))
+            self.innovations.extend((t, float(v), float(s), float(q), 1.0)
+                                    for v, s, q in zip(nu, np.diag(S), r, strict=True))
 
     # --- (1)-(5), (14)-(15) ----------------------------------------------------------------
     def start(self, lm: int, bearing: float, step: int, r2: float | None = None) -> None:
@@ -367,10 +372,11 @@ def run(data: OmniData, cfg: OmniConfig, augmentation: str, name: str, trace: bo
                     map_cov[e, on, a, b] = f.P[o + a, o + b]
     if K > last:
         poses[last + 1:], covs[last + 1:] = f.predict(*data.odometry(last))
-    innov = np.array(f.innovations, float).reshape(-1, 3)
+    innov = np.array(f.innovations, float).reshape(-1, 5)
     return SlamEstimate(name, np.arange(K + 1), poses, covs, map_steps, map_mean, map_cov,
                         f.first_seen, f.init_step, failures=f.failures, gated_bearings=np.array(f.gated, int),
-                        attempts=f.attempts, innovations=Innovations.scalar(*innov.T))
+                        attempts=f.attempts, innovations=Innovations.scalar(*innov[:, :3].T, kept=innov[:, 4] > 0,
+                                                                       r=innov[:, 3], gate=cfg.nis_gate or None))
 
 
 def odometry(data: OmniData, name: str = "odometry") -> SlamEstimate:

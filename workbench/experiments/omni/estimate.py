@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from workbench.estimation.consistency import Innovations
+from workbench.estimation.consistency import Innovations, Residuals
 
 
 @dataclass
@@ -35,6 +35,8 @@ class SlamEstimate:
     trajectory as it holds it at the end (iSAM2's final estimate, at ``steps``), beside ``pose``,
     what it knew at each step. ``start``: where an estimator that can start from more than one
     place started (the batch's winner by its cost on the data), ``start_costs`` each start's cost.
+    ``residuals``: a smoother's residuals at its answer by group with their redundancies
+    (:class:`~workbench.estimation.consistency.Residuals`: its truth-free diagnosis reads them).
     """
 
     name: str = ""
@@ -55,6 +57,7 @@ class SlamEstimate:
     start: str = ""  # where it started, if it chose among starts (by its cost on the data)
     start_costs: dict[str, float] = field(default_factory=dict)  # each start's cost
     fit: tuple[float, int] | None = None  # a least-squares smoother's residual chi-square and its dof
+    residuals: Residuals | None = None  # a smoother's residuals at its answer by group, for its diagnosis
 
     @property
     def gated(self) -> int:

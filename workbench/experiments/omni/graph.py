@@ -35,6 +35,7 @@ from gtsam.symbol_shorthand import L, X
 
 from workbench.estimation.angles import wrap
 from workbench.estimation.metrics import chi2_quantile
+from workbench.experiments.omni import residuals
 from workbench.experiments.omni.config import OmniConfig
 from workbench.experiments.omni.estimate import SlamEstimate
 from workbench.experiments.omni.scenario import OmniData, keyframe_steps
@@ -558,7 +559,20 @@ def isam2(data: OmniData, cfg: OmniConfig, kf: Keyframes | None = None, map_ever
     return SlamEstimate("isam2", kf.steps.copy(), poses, to_world(covs, poses[:, 2]), np.array(map_steps),
                         np.array(map_mean), np.array(map_cov), inc.first_seen, inc.init_step,
                         failures=inc.failures, gated_bearings=gated_indices(data, kf, inc.rejected),
-                        smoothed=inc.estimate()[0])
+                        smoothed=inc.estimate()[0], residuals=_held_residuals(data, cfg, kf, inc))
+
+
+def _held_residuals(data: OmniData, cfg: OmniConfig, kf: Keyframes, inc: _Incremental):
+    """iSAM2's residuals at the answer it holds at the end (:mod:`.residuals`), over the graph of
+    its landmarks and the bearings it kept; None where it holds none."""
+    if inc.isam is None:
+        return None
+    values = inc.isam.calculateEstimate()
+    graph = _batch_graph(data, kf, inc.marks, inc.rejected)
+    try:
+        return residuals.of_graph(graph, values, kf, inc.marks.inserted, inc.rejected, cfg.nis_gate or None)
+    except RuntimeError:  # a variable the graph holds that the answer does not
+        return None
 
 
 def _marginal(isam: gtsam.ISAM2 | None, key: int, dim: int) -> np.ndarray:
@@ -620,7 +634,8 @@ def batch(data: OmniData, cfg: OmniConfig, kf: Keyframes | None = None,
                         np.array([kf.steps[-1]]), mean[None], lm_cov[None], first_seen, init_step,
                         gated_bearings=gated_indices(data, kf, rejected), start=starts[won].name,
                         start_costs={s.name: float(c) for s, c in zip(starts, costs, strict=True)},
-                        fit=fit(graph, result, E, int(marks.inserted.sum())))
+                        fit=fit(graph, result, E, int(marks.inserted.sum())),
+                        residuals=residuals.of_graph(graph, result, kf, marks.inserted, rejected, cfg.nis_gate or None))
 
 
 def fit(graph: gtsam.NonlinearFactorGraph, result: gtsam.Values, poses: int, landmarks: int) -> tuple[float, int]:

@@ -85,7 +85,7 @@ def estimate(data: SeaData, cfg: SeaConfig) -> Estimate:
     gate = -2.0 * np.log1p(-cfg.ekf_gate)
     X = np.full((T, 4), np.nan)
     Ps = np.full((T, 4, 4), np.nan)
-    rows: list[tuple[float, np.ndarray, np.ndarray]] = []  # the innovations: (t, nu, S); NaN where gated
+    rows: list[tuple[float, np.ndarray, np.ndarray, np.ndarray, bool]] = []  # the innovations: (t, nu, S, R, kept)
     cam = observer.camera(data)
     fold = float(cam.fold)
     R_angles = np.diag([data.sigma_alpha**2, data.sigma_beta**2])
@@ -118,9 +118,9 @@ def estimate(data: SeaData, cfg: SeaConfig) -> Estimate:
                     x = x + K @ nu
                     P = ikh @ P @ ikh.T + K @ R @ K.T
                     P = 0.5 * (P + P.T)
-                    rows.append((t[k], nu, S))
-                else:
-                    rows.append((t[k], np.full(2, np.nan), np.full((2, 2), np.nan)))
+                    rows.append((t[k], nu, S, R, True))
+                else:  # gated: the innovation it was judged on is kept for the diagnosis
+                    rows.append((t[k], nu, S, R, False))
         if x is not None:
             X[k], Ps[k] = x, P
     # l-step forecasts: F^l x (positions only)
@@ -128,6 +128,7 @@ def estimate(data: SeaData, cfg: SeaConfig) -> Estimate:
     Fl = np.stack([np.linalg.matrix_power(F, l)[:2] for l in range(1, L + 1)])  # (L, 2, 4)
     forecast = np.einsum("lij,tj->tli", Fl, X)
     innovations = Innovations(np.array([r[0] for r in rows]), np.array([r[1] for r in rows]).reshape(-1, 2),
-                              np.array([r[2] for r in rows]).reshape(-1, 2, 2))
+                              np.array([r[2] for r in rows]).reshape(-1, 2, 2), np.array([r[4] for r in rows], bool),
+                              np.array([r[3] for r in rows]).reshape(-1, 2, 2), cfg.ekf_gate if gated else None)
     return observer.relative("ekf", data, cam, X[:, :2].copy(), np.arange(T), covariance=Ps[:, :2, :2].copy(),
                              state_cov=Ps, velocity=X[:, 2:].copy(), forecast=forecast, innovations=innovations)

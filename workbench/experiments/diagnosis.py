@@ -1,0 +1,314 @@
+"""One truth-free diagnosis per estimator, with its figures and a reason, that gating cannot fool.
+
+Each run's estimate gives its **evidence** (:func:`evidence`): a filter's innovations of every
+measurement it was handed (:class:`~workbench.estimation.consistency.Innovations`, the ones its
+gate left out with the innovation they were judged on), a least-squares smoother's residuals at
+its answer by group (:class:`~workbench.estimation.consistency.Residuals`), the whiteness of the
+innovations and a causal estimator's disagreement with the run's smoother. The runs' evidence is
+pooled and read (:func:`diagnose`), in this order:
+
+1. **not enough data to say**: fewer than :data:`MIN_ROWS` measurements with a figure;
+2. **noise assumed too narrow**, by what factor (sigma) and which group: the maximum
+   likelihood of the noise's variance factor over every measurement handed, those the gate left
+   out too (:mod:`~workbench.estimation.noisefit`); for a filter the state's (motion noise) and the
+   measurement noise's apart where the innovations' shares tell them apart; for a smoother each
+   group's variance component (Förstner 1979) from its residuals and redundancy. A factor counts
+   where its 95 % interval leaves out 1 and it is beyond :data:`TOLERANCE`;
+3. **wrong basin**: a causal estimator the run's smoother contradicts far beyond both their
+   covariances (the median of ``d' (P_f + P_s)^-1 d``, no larger than chi-square with the state's
+   dimension for a consistent pair, over its 99.9 % point: most of the run beyond 4 sigma;
+   Bar-Shalom, Li, Kirubarajan, sec. 5.4), where the noise is not too narrow (that explains it);
+4. **noise assumed too wide**, as 2;
+5. **outliers / heavy tails**: a heavy tail the likelihood ratio keeps (p < :data:`ALPHA`), with
+   the share of the measurements it holds and the share beyond the gate against the Gaussian's;
+6. **left out**: more measurements left out (gated, failed) than the estimator's own gate expects
+   (a binomial test at :data:`ALPHA`) that nothing above explains;
+7. **correlated innovations**: the whiteness test fails (a model error a scale does not mend);
+8. **consistent**.
+
+The verdict is the first that holds; its figures are all given (``estimators.<name>.diagnosis``
+of the metrics JSON). Readings taken: the innovations are treated as independent in the
+intervals (they are not where the model is wrong), so a factor needs a size as well as a
+significance to count; a left-out measurement with no innovation is censored at the gate.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from scipy import stats as sstats
+
+from workbench.estimation import noisefit
+from workbench.estimation.consistency import Innovations, Residuals
+from workbench.estimation.metrics import chi2_quantile
+
+MIN_ROWS = 30
+"""Fewer measurements with a figure than this: not enough data to say."""
+TOLERANCE = 1.25
+"""A noise factor (on the sigma) within ``1/TOLERANCE .. TOLERANCE`` is not reported as wrong: a
+quarter on the sigma is about the smallest change a tuning acts on, and the intervals, which
+treat the innovations as independent, are narrower than the truth beneath it."""
+TAIL_SHARE = 0.01
+"""A heavy tail is reported where it holds at least this share of the measurements (and more
+than the gate expects to leave out): a smaller one is a few misreads, which a 99 % gate is for."""
+UNIDENTIFIED = 10.0
+"""A group's factor whose 95 % interval spans more than this ratio is reported as not identified by
+the data (the innovations' shares hardly vary, or the group has no redundancy)."""
+ALPHA = 1e-3
+"""The significance of the tail's likelihood-ratio test and of the left-out share's binomial test."""
+BASIN = 0.999
+"""A causal estimator is in another basin than the smoother where its median disagreement is over
+this point of its chi-square."""
+VERDICTS = ("consistent", "too narrow", "too wide", "outliers", "wrong basin", "left out", "correlated",
+            "not enough data")
+
+
+@dataclass
+class Evidence:
+    """One estimator's truth-free evidence (one run's, or the runs' pooled): ``q`` the normalised
+    squared innovation or residual of every measurement handed (NaN: none), ``dof`` its dimension,
+    ``kept`` whether the estimator used it, ``share`` each innovation's share that is the state's
+    uncertainty (filters), ``censor`` the gate's chi-square point where a left-out one has no
+    figure, ``gate`` the gate's probability, ``groups`` a smoother's ``group -> (sum r2, redundancy,
+    rows)``, ``whiteness`` the runs' whiteness figures, ``disagreement`` a causal estimator's
+    against the smoother with its ``dimension``."""
+
+    kind: str
+    q: np.ndarray
+    dof: np.ndarray
+    kept: np.ndarray
+    share: np.ndarray | None = None
+    censor: np.ndarray | None = None
+    gate: float | None = None
+    groups: dict[str, tuple[float, float, int]] = field(default_factory=dict)
+    whiteness: list[float] = field(default_factory=list)
+    disagreement: np.ndarray | None = None
+    dimension: int = 0
+
+
+def _censor(kept: np.ndarray, q: np.ndarray, dof: np.ndarray, gate: float | None) -> np.ndarray:
+    out = np.full(len(q), np.inf)
+    if gate:
+        lost = ~kept & ~np.isfinite(q)
+        out[lost] = [chi2_quantile(gate, int(m)) for m in dof[lost]] if lost.any() else []
+    return out
+
+
+def from_innovations(innov: Innovations) -> Evidence:
+    """A filter's evidence: the NIS of every measurement it was handed (gated ones too, where the
+    filter kept their innovation)."""
+    q = innov.nis_all()
+    dof = np.full(len(q), innov.dimension)
+    kept = innov.used
+    return Evidence("innovations", q, dof, kept, innov.state_share(), _censor(kept, q, dof, innov.gate), innov.gate)
+
+
+def from_residuals(res: Residuals) -> Evidence:
+    """A smoother's evidence: its measurements' residuals (the ``measurement`` group's), each used
+    one studentised by its group's redundancy share (its expectation at a consistent answer is
+    then its dimension), each one left out as it is (a prediction's residual, at least as wide);
+    and every group's variance component."""
+    q = res.r2.copy()
+    groups = {}
+    for g in dict.fromkeys(res.group.tolist()):
+        mine = res.group == g
+        used = mine & res.used & np.isfinite(res.r2)
+        red = res.redundancy.get(g, 0.0)
+        n = float(res.dof[used].sum())
+        if n > 0 and red > 0:
+            q[used] = res.r2[used] / (red / n)
+        groups[g] = (float(res.r2[used].sum()), red, int(used.sum()))
+    rows = res.group == res.measurement
+    return Evidence("residuals", q[rows], res.dof[rows], res.used[rows], None,
+                    _censor(res.used[rows], res.r2[rows], res.dof[rows], res.gate), res.gate, groups)
+
+
+def evidence(estimate: Any, metrics: Mapping[str, Any] | None = None, dimension: int = 0,
+             residual: str | None = None) -> Evidence | None:
+    """One run's evidence of an estimate: its ``residuals`` (a smoother) or ``innovations`` (a
+    filter), else the experiment's ``residual`` metric where it has its dof (normalised squared
+    residuals of an estimate with a covariance), with the run's whiteness and its gap to the
+    smoother (``metrics``: the estimator's metric -> :class:`~.metric.Values`; ``smoother_gap``,
+    chi-square with ``dimension``); None where there is none."""
+    metrics = metrics or {}
+    res = getattr(estimate, "residuals", None)
+    innov = getattr(estimate, "innovations", None)
+    r = metrics.get(residual) if residual else None
+    if isinstance(res, Residuals) and len(res.r2):
+        ev = from_residuals(res)
+    elif isinstance(innov, Innovations) and len(innov.t):
+        ev = from_innovations(innov)
+    elif r is not None and r.dof:
+        q = np.asarray(r.values, float)
+        ev = Evidence("residuals", q, np.full(len(q), r.dof), np.isfinite(q))
+    else:
+        return None
+    w = metrics.get("innovation_whiteness")
+    if w is not None and np.isfinite(w.values).any():
+        ev.whiteness = [float(np.nanmean(w.values))]
+    d = metrics.get("smoother_gap")
+    if d is not None and dimension:
+        ev.disagreement, ev.dimension = np.asarray(d.values, float), dimension
+    return ev
+
+
+def pool(items: list[Evidence]) -> Evidence | None:
+    """The runs' evidence of one estimator as one."""
+    items = [e for e in items if e is not None]
+    if not items:
+        return None
+
+    def cat(name):
+        parts = [getattr(e, name) for e in items]
+        return None if any(p is None for p in parts) else np.concatenate(parts)
+
+    groups: dict[str, tuple[float, float, int]] = {}
+    for e in items:
+        for g, (s, r, n) in e.groups.items():
+            a = groups.get(g, (0.0, 0.0, 0))
+            groups[g] = (a[0] + s, a[1] + r, a[2] + n)
+    dis = [e.disagreement for e in items if e.disagreement is not None]
+    return Evidence(items[0].kind, cat("q"), cat("dof"), cat("kept"), cat("share"), cat("censor"), items[0].gate,
+                    groups, [w for e in items for w in e.whiteness], np.concatenate(dis) if dis else None,
+                    items[0].dimension)
+
+
+def _outside(value: float | None, interval: tuple[float, float] | None) -> int:
+    """+1 where a sigma factor is too narrow (over the tolerance, its interval above 1), -1 too
+    wide, 0 neither."""
+    if value is None or not np.isfinite(value):
+        return 0
+    lo, hi = interval if interval is not None else (value, value)
+    if value > TOLERANCE and lo > 1.0:
+        return 1
+    if value < 1.0 / TOLERANCE and hi < 1.0:
+        return -1
+    return 0
+
+
+def _pct(x: float) -> str:
+    return f"{100 * x:.1f} %" if x < 0.1 else f"{100 * x:.0f} %"
+
+
+def diagnose(ev: Evidence | None, names: Mapping[str, str] | None = None) -> dict | None:
+    """The diagnosis of one estimator from its pooled evidence (the module's text): ``verdict``
+    (one of :data:`VERDICTS`), ``factor`` (the sigma factor where the noise is wrong: over 1 too
+    narrow), ``group``, ``reason`` (one line) and the figures. ``names``: what the groups are
+    called in words (``{"state": "odometry"}``)."""
+    if ev is None:
+        return None
+    names = {"state": "motion", "measurement": "measurement", **(names or {})}
+    handed = len(ev.q)
+    seen = np.isfinite(ev.q)
+    cens = ~seen & np.isfinite(ev.censor) if ev.censor is not None else np.zeros(handed, bool)
+    rows = int(seen.sum() + cens.sum())
+    left = float(np.mean(~ev.kept)) if handed else 0.0
+    expected = (1.0 - ev.gate) if ev.gate else 0.0
+    out: dict[str, Any] = {"handed": handed, "left_out": left, "left_out_expected": expected, "rows": rows}
+    if ev.kind == "residuals":
+        bearing_rows = int((ev.kept & seen).sum())
+        rows = max(rows, bearing_rows)
+    if rows < MIN_ROWS:
+        return {"verdict": "not enough data", "factor": None, "group": None,
+                "reason": f"{rows} measurements with a figure (at least {MIN_ROWS} to say)", **out}
+    n_left = int(round(left * handed))
+    p_left = float(sstats.binom.sf(n_left - 1, handed, max(expected, 1e-3))) if n_left else 1.0
+    out["left_out_p"] = p_left
+    censor = np.where(cens, ev.censor, np.inf) if ev.censor is not None else None
+    plain, heavy, p_tail = noisefit.tail_test(ev.q, ev.dof, ev.share, censor)
+    tailed = heavy is not None and p_tail < ALPHA and heavy.eps >= max(TAIL_SHARE, expected)
+    best = heavy if tailed else plain
+    if best is None:
+        return {"verdict": "not enough data", "factor": None, "group": None, "reason": "no figure to fit", **out}
+    out["scale"] = math.sqrt(best.k)
+    out["tail_share"] = best.eps if tailed else 0.0
+    out["tail_width"] = math.sqrt(best.c) if tailed else None
+    out["tail_p"] = p_tail
+    beyond = float(np.mean(~ev.kept))
+    groups: dict[str, dict] = {}
+    if best.a is not None:  # a filter: the state's share and the measurement noise's apart
+        for key, v in (("state", best.a), ("measurement", best.b)):
+            iv = best.intervals.get("a" if key == "state" else "b")
+            groups[names.get(key, key)] = {"factor": math.sqrt(v),
+                                           "interval": None if iv is None else [math.sqrt(iv[0]), math.sqrt(iv[1])]}
+    for g, (s, red, n) in ev.groups.items():  # a smoother: each group's variance component
+        vc = noisefit.variance_components(np.array([s]), red)
+        if vc is not None:
+            groups[names.get(g, g)] = {"factor": math.sqrt(vc[0]), "interval": [math.sqrt(vc[1][0]),
+                                                                                 math.sqrt(vc[1][1])], "rows": n}
+    if not groups:  # one scale: a smoother's measurements, or innovations whose noise parts are not given
+        iv = best.intervals.get("k")
+        one = names["measurement"] if ev.kind == "residuals" else "all"
+        groups[one] = {"factor": math.sqrt(best.k),
+                       "interval": None if iv is None else [math.sqrt(iv[0]), math.sqrt(iv[1])]}
+    out["groups"] = groups
+
+    for v in groups.values():
+        iv = v["interval"]
+        v["identified"] = bool(iv is not None and np.isfinite(iv).all() and iv[0] > 0 and iv[1] / iv[0] < UNIDENTIFIED)
+        if iv is not None and not v["identified"]:
+            v["interval"] = None
+    said = (f"{_pct(left)} of {handed} measurements left out, "
+            + (f"{_pct(expected)} expected at its gate" if ev.gate else "no gate") + "; "
+            + "; ".join((f"{g} x{v['factor']:.2f}" + (f" [{v['interval'][0]:.2f}-{v['interval'][1]:.2f}]"
+                                                      if v["interval"] else "")) if v["identified"] else
+                        f"{g} not identified" for g, v in groups.items()))
+    direction = {g: _outside(v["factor"], tuple(v["interval"])) if v["identified"] else 0 for g, v in groups.items()}
+    if tailed:
+        said += f"; a tail of {_pct(best.eps)} {math.sqrt(best.c):.0f}x wider"
+    basin = None
+    if ev.disagreement is not None and ev.dimension and np.isfinite(ev.disagreement).any():
+        med = float(np.nanmedian(ev.disagreement))
+        out["smoother_gap_median"] = med
+        limit = chi2_quantile(BASIN, ev.dimension)
+        if med > limit:
+            basin = (f"the smoother contradicts it beyond both their covariances (median gap {med:.3g} against "
+                     f"{limit:.3g}, the {100 * BASIN:g} % point of chi-square with {ev.dimension})")
+            said = basin + "; " + said
+    narrow = [g for g, d in direction.items() if d > 0]
+    wide = [g for g, d in direction.items() if d < 0]
+    if narrow:
+        f = max(groups[g]["factor"] for g in narrow)
+        return {"verdict": "too narrow", "factor": f, "group": ", ".join(narrow),
+                "reason": f"noise assumed too narrow by about {f:.2g}x ({', '.join(narrow)}): " + said, **out}
+    if basin is not None:
+        return {"verdict": "wrong basin", "factor": None, "group": None, "reason": said, **out}
+    if wide:
+        f = min(groups[g]["factor"] for g in wide)
+        return {"verdict": "too wide", "factor": f, "group": ", ".join(wide),
+                "reason": f"noise assumed too wide by about {1 / f:.2g}x ({', '.join(wide)}): " + said, **out}
+    excess = p_left < ALPHA and left > expected
+    if tailed:
+        return {"verdict": "outliers", "factor": None, "group": None,
+                "reason": f"outliers or heavy tails: {_pct(beyond)} left out, {_pct(best.eps)} in a tail "
+                          f"{math.sqrt(best.c):.0f}x wider than the noise; " + said, **out}
+    if excess:
+        return {"verdict": "left out", "factor": None, "group": None,
+                "reason": "more left out than its model expects: " + said, **out}
+    from workbench.experiments.truthfree import WHITE_MAX
+
+    if ev.whiteness and float(np.mean(ev.whiteness)) > WHITE_MAX:
+        w = float(np.mean(ev.whiteness))
+        return {"verdict": "correlated", "factor": None, "group": None,
+                "reason": f"innovations not white ({w:.2f} of the lags outside their band, at most {WHITE_MAX}): "
+                          "a model error no noise scale mends; " + said, **out}
+    return {"verdict": "consistent", "factor": None, "group": None, "reason": said, **out}
+
+
+def line(d: Mapping | None) -> str:
+    """A diagnosis in a few words (a table's cell, a recording's title)."""
+    if not d:
+        return ""
+    v = d["verdict"]
+    if v in ("too narrow", "too wide") and d.get("factor"):
+        f = d["factor"] if v == "too narrow" else 1.0 / d["factor"]
+        return f"{v} x{f:.1f} ({d['group']})"
+    if v == "outliers":
+        return f"outliers {_pct(d.get('tail_share') or d['left_out'])}"
+    if v == "left out":
+        return f"left out {_pct(d['left_out'])}"
+    return v
