@@ -8,8 +8,8 @@ import math
 import gtsam
 import numpy as np
 import pytest
-
 from launcher import cli
+
 from workbench.estimation import noisefit
 from workbench.estimation.consistency import Innovations
 from workbench.estimation.redundancy import hat_traces
@@ -169,3 +169,49 @@ def test_a_log_whose_odometry_covariance_is_ten_times_too_small(tmp_path):
     right = _diagnoses(tmp_path / "right", tmp_path, "right")
     for name in ("ekf", "gtsam-batch"):
         assert right[name]["verdict"] == "consistent", right[name]["reason"]
+
+
+def test_a_survey_with_two_ids_swapped_is_named_by_id():
+    """Thirty landmarks mapped to 0.2 m, the survey's ids 13 and 17 exchanged: both far off, named
+    as swapped, the alignment refitted without them (its RMS back to the map's noise); one landmark
+    5 m off alone is far off but not swapped."""
+    from workbench.experiments.omni import survey
+
+    rng = np.random.default_rng(8)
+    truth = rng.uniform(-50, 50, (30, 2))
+    est = truth + rng.normal(0, 0.2, (30, 2))
+    swapped = truth.copy()
+    swapped[[3, 7]] = swapped[[7, 3]]
+    found = survey.compare(est, swapped, np.arange(30) + 10)
+    assert found["swapped"] == [[13, 17]] and found["far"] == [13, 17] and found["refit"] == [13, 17]
+    assert found["rms_without_far"] < 0.4 and found["median"] < 0.4
+    assert "ids 13 and 17 each sit at the other's surveyed place" in survey.describe(found)
+    est[5] += [5.0, 0.0]
+    found = survey.compare(est, truth, np.arange(30))
+    assert found["far"] == [5] and found["swapped"] == []
+
+
+def test_a_swapped_survey_on_a_log_is_named_and_marked(tmp_path):
+    """A synthetic log whose survey swaps the two nearest well-seen landmarks: the batch's map names
+    them swapped in the metrics JSON and the report, and the recording marks them."""
+    from rerun.chunk import RrdReader
+
+    sim = faults.simulate(faults.Faults(poses=1500))
+    ids, counts = np.unique(sim["true_ids"], return_counts=True)
+    seen = ids[counts >= 40]  # landmarks seen often enough to be mapped well
+    pts = sim["landmarks"][seen]
+    d = np.hypot(*(pts[:, None] - pts[None]).transpose(2, 0, 1)) + np.eye(len(seen)) * 1e9
+    i, j = np.unravel_index(np.argmin(np.where(d > 4.0, d, 1e9)), d.shape)
+    pair = sorted([int(seen[i]), int(seen[j])])
+    faults.write(tmp_path / "log", faults.Faults(poses=1500, swap=tuple(pair)))
+    out, rrd = tmp_path / "m.json", tmp_path / "m.rrd"
+    r = cli("omni", "--scenario", "log", "--data", str(tmp_path / "log"), "--estimators", "gtsam-batch",
+            "--out", str(rrd), "--metrics", str(out))
+    assert r.returncode == 0, r.stderr
+    found = json.loads(out.read_text())["estimators"]["gtsam-batch"]["survey"]
+    assert pair in found["swapped"], found
+    assert f"ids {pair[0]} and {pair[1]} each sit at the other's surveyed place" in r.stdout
+    labels = [lab for chunk in RrdReader(str(rrd)).store().stream()
+              if str(chunk.entity_path) == "/map/gtsam-batch/far_off"
+              for row in chunk.to_record_batch().column("Points3D:labels").to_pylist() for lab in row or []]
+    assert any(f"id {pair[0]}:" in lab and f"swapped with id {pair[1]}" in lab for lab in labels), labels

@@ -42,6 +42,10 @@ def test_a_diverging_series_does_not_set_the_axis():
     assert set(off) == {"ekf-paper"} and top == pytest.approx(1.1 * np.abs(np.sin(t)).max())
     # none diverging: the viewer's own axis, nothing named
     assert layout.scale({"a": t, "b": 2 * t}) == (None, {})
+    # four estimators, two drifting 60x as far: the axis fits the two good ones, the others named
+    four = {"odometry": 300 * t, "ekf-paper": 280 * t, "ekf": 5 * t, "gtsam-batch": 4 * t}
+    top, off = layout.scale(four)
+    assert set(off) == {"odometry", "ekf-paper"} and top == pytest.approx(1.1 * 500)
 
 
 def test_a_spike_does_not_squeeze_a_band():

@@ -12,6 +12,7 @@ import pytest
 from launcher import DATA, bad_logs_say_one_line, edit_line, wb
 
 import workbench
+from workbench.experiments import diagnosis
 from workbench.recording import blueprints, readback
 
 ALL = "odometry,ekf-paper,ekf,isam2,gtsam-batch"
@@ -81,8 +82,10 @@ def test_without_truth_with_a_sparse_one_and_without_landmark_ids(tmp_path):
     assert any(n.startswith("departure from gtsam-batch, position (m)") for n in names)
     assert not any(n.startswith("position error") for n in names)
     verdict = next(n for n in names if n.startswith("disagreement with gtsam-batch (3 dof, grey band)"))
-    failing = sorted(k for k, e in stats.items() if e.get("consistent_without_truth") is False)
-    assert "ekf-paper" in failing and "; failing: " + ", ".join(failing) in verdict
+    # each failing estimator named with its truth-free diagnosis
+    failing = [k + (f" ({diagnosis.line(e['diagnosis'])})" if e.get("diagnosis") else "")
+               for k, e in stats.items() if e.get("consistent_without_truth") is False]
+    assert any(f.startswith("ekf-paper (") for f in failing) and "; failing: " + ", ".join(failing) in verdict
     t, d = readback.series(out, "/errors/position/ekf")
     ekf, ref = res.estimates["ekf"], res.estimates["gtsam-batch"]
     want = np.hypot(*(ref.pose[:, :2] - ekf.pose[np.searchsorted(ekf.steps, ref.steps), :2]).T)

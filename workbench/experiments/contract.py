@@ -23,7 +23,8 @@ installed package's entry point in the group ``workbench.experiments``):
                    than its dataset and its estimators, e.g. an image stage), ``run_count(cfg)``
                    and ``grid_values`` (a sweep's values expanded)
 ``metrics.py``     ``METRICS``: the metrics that apply (:class:`~.metric.Metric` rows), ``TABLE``:
-                   those the results table shows, ``RENAMED``: keys a release renamed (old -> new)
+                   those the results table shows, ``RENAMED``: keys a release renamed (old -> new),
+                   ``NOISE_GROUPS``: the noise groups' names in the diagnosis (:mod:`.diagnosis`)
 ``evaluate.py``    ``summarise(result, cfg, run)``: the run's own figures beyond its metrics (a
                    :class:`RunSummary`); ``statistics(cfg, summaries, stats)``: what it adds to
                    the metrics JSON beyond the metrics' figures
@@ -321,12 +322,7 @@ class Experiment:
                                    products=result.products, cache=result.cache, result=result)
         metrics = self.metrics(cfg)
         summary.metrics, summary.metric_failures = metric.evaluate(metrics, result.data, result.estimates, ctx)
-        dimension = next((m.dimension or 0 for m in metrics if m.name == "disagreement"), 0)
-        residual = next((m.name for m in metrics if m.evidence), None)
-        for name, est in result.estimates.items():
-            ev = diagnosis.evidence(est, summary.metrics.get(name), dimension, residual)
-            if ev is not None:
-                summary.evidence[name] = ev
+        summary.evidence = diagnosis.collect(metrics, result.estimates, summary.metrics)
         return summary
 
     def run_metrics(self, summary: RunSummary, cfg: Any) -> dict[str, dict[str, float]]:
@@ -339,7 +335,8 @@ class Experiment:
     def statistics(self, cfg: Any, summaries: list[RunSummary], label: str = "") -> dict:
         """The metrics JSON: the outer keys every experiment shares (``experiment``, ``scenario``,
         ``seed``, ``runs``, ``label``, ``config``), every metric's figures over the runs per
-        estimator, what the package's ``evaluate.statistics`` adds, and the renamed keys."""
+        estimator and its truth-free diagnosis, what the package's ``evaluate.statistics`` adds, and
+        the renamed keys."""
         if not summaries:
             raise WorkbenchError("no runs to summarise")
         stats: dict = {"experiment": self.name, "scenario": cfg.scenario, "seed": cfg.seed, "runs": len(summaries),
@@ -353,27 +350,9 @@ class Experiment:
                 failed.setdefault(k, f"{why} (run {s.run})")
         if failed:
             stats["metric_failures"] = failed
-        self.diagnose(summaries, stats)
+        diagnosis.attach(stats, [s.evidence for s in summaries], self._optional("metrics", "NOISE_GROUPS", {}))
         self.role("evaluate").statistics(cfg, summaries, stats)
         return figures.add_renamed(stats, self.renamed)
-
-    def diagnose(self, summaries: list[RunSummary], stats: dict) -> None:
-        """Each estimator's truth-free diagnosis (:mod:`.diagnosis`) from the runs' pooled evidence,
-        into its entry (``diagnosis``); ``consistent_without_truth`` then also asks the diagnosis
-        to be "consistent" (what the estimator left out counts), and ``left_out_expected`` is set
-        beside ``left_out``. The package's ``metrics.NOISE_GROUPS`` names the noise groups."""
-        names = self._optional("metrics", "NOISE_GROUPS", {})
-        for name, entry in stats["estimators"].items():
-            ev = diagnosis.pool([s.evidence[name] for s in summaries if name in s.evidence])
-            found = diagnosis.diagnose(ev, names)
-            if found is None:
-                continue
-            entry["diagnosis"] = found
-            entry["left_out"] = found["left_out"]
-            entry["left_out_expected"] = found["left_out_expected"]
-            if found["verdict"] != "not enough data":
-                entry["consistent_without_truth"] = bool(entry.get("consistent_without_truth", True)
-                                                         and found["verdict"] == "consistent")
 
     def table(self, stats: dict) -> str:
         """The results table, markdown (``report.table``; without a ``report`` module the metrics'

@@ -156,6 +156,21 @@ def evidence(estimate: Any, metrics: Mapping[str, Any] | None = None, dimension:
     return ev
 
 
+def collect(metrics: list, estimates: Mapping[str, Any], samples: Mapping[str, Mapping[str, Any]]
+            ) -> dict[str, Evidence]:
+    """One run's evidence of every estimate (:func:`evidence`): ``metrics`` the run's metric rows
+    (the ``disagreement`` one's dimension is the smoother gap's; one marked ``evidence`` is the
+    residual read where an estimate has no innovations or residuals), ``samples`` their values."""
+    dimension = next((m.dimension or 0 for m in metrics if m.name == "disagreement"), 0)
+    residual = next((m.name for m in metrics if m.evidence), None)
+    out = {}
+    for name, est in estimates.items():
+        ev = evidence(est, samples.get(name), dimension, residual)
+        if ev is not None:
+            out[name] = ev
+    return out
+
+
 def pool(items: list[Evidence]) -> Evidence | None:
     """The runs' evidence of one estimator as one."""
     items = [e for e in items if e is not None]
@@ -297,6 +312,23 @@ def diagnose(ev: Evidence | None, names: Mapping[str, str] | None = None) -> dic
                 "reason": f"innovations not white ({w:.2f} of the lags outside their band, at most {WHITE_MAX}): "
                           "a model error no noise scale mends; " + said, **out}
     return {"verdict": "consistent", "factor": None, "group": None, "reason": said, **out}
+
+
+def attach(stats: dict, evidence: list[Mapping[str, Evidence]], names: Mapping[str, str] | None = None) -> None:
+    """Each estimator's diagnosis from the runs' ``evidence`` (each run's estimator -> its
+    :class:`Evidence`), pooled, into its entry of the metrics JSON (``diagnosis``);
+    ``consistent_without_truth`` then also asks the diagnosis to be "consistent" (what the
+    estimator left out counts), and ``left_out`` / ``left_out_expected`` are set from it."""
+    for name, entry in stats["estimators"].items():
+        found = diagnose(pool([run[name] for run in evidence if name in run]), names)
+        if found is None:
+            continue
+        entry["diagnosis"] = found
+        entry["left_out"] = found["left_out"]
+        entry["left_out_expected"] = found["left_out_expected"]
+        if found["verdict"] != "not enough data":
+            entry["consistent_without_truth"] = bool(entry.get("consistent_without_truth", True)
+                                                     and found["verdict"] == "consistent")
 
 
 def line(d: Mapping | None) -> str:

@@ -23,6 +23,11 @@ import numpy as np
 from workbench.estimation.metrics import chi2_band
 from workbench.experiments.metric import Metric, Values
 
+EFFICIENCY_MAX = 1e6
+"""An efficiency over this is not given: the bound is then a millionth of the error, a bound whose
+information matrix was numerically singular (isam2's map bound gave 7.7e12 on a real log), not a
+figure of the estimator."""
+
 
 def _reduce(how: str, x: np.ndarray) -> float | None:
     x = np.asarray(x, float)
@@ -123,6 +128,9 @@ def statistics(metrics: Iterable[Metric], runs: list[Mapping[str, Mapping[str, V
                 continue
             parts = metrics_by(metrics, m.efficiency)
             entry[m.name] = _efficiency(pairs, settle, parts)
+            if entry[m.name] is None and entry.get(m.efficiency[0]) is not None:
+                entry[f"{m.name}_note"] = ("no efficiency: its bound is not finite, or near zero (under "
+                                           f"1/{EFFICIENCY_MAX:.0e} of the error: a numerical failure of the bound)")
             mse = [x for x in (_mean_square(counted(e, settle, parts[0])) for e, _ in pairs) if x is not None]
             if entry[m.name] is not None and len(mse) > 1 and np.mean(mse) > 0:
                 sq = np.array(mse)  # the runs' mean squared errors: the delta method's spread of the ratio
@@ -150,9 +158,10 @@ def _efficiency(pairs: list[tuple[Values, Values]], settle: float | None, parts:
     if err is not None and len(parts) > 2:
         err *= parts[2] ** 2
     bound = _mean_square(np.concatenate([counted(b, settle, parts[1]) for _, b in pairs]))
-    if err is None or bound is None or bound <= 0:
+    if err is None or bound is None or not np.isfinite(bound) or bound <= 0:
         return None
-    return float(np.sqrt(err) / np.sqrt(bound))
+    eff = float(np.sqrt(err) / np.sqrt(bound))
+    return eff if eff <= EFFICIENCY_MAX else None
 
 
 def run_rows(metrics: Iterable[Metric], run: Mapping[str, Mapping[str, Values]], settle: float | None = None

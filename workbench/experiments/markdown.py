@@ -107,6 +107,8 @@ def _below(e: Mapping, key: str) -> bool:
 
 def _efficiency(e: Mapping, key: str) -> str:
     eff, se = e.get(key), e.get(f"{key}_se")
+    if e.get(f"{key}_note"):
+        return "none: bound near zero"
     if eff is None or not np.isfinite(eff):
         return ""
     return f"{eff:.2f}" + (f" +- {se:.2f}" if se is not None else "") + (" (below!)" if _below(e, key) else "")

@@ -18,7 +18,10 @@ import rerun.blueprint as rrb
 MAP_BACKGROUND = (24, 28, 34)
 """The maps' background: the estimators' colours and the truth's near-white read on it."""
 OFF_SCALE = 10.0
-"""An estimator whose largest value is this many times the others' median largest is off the scale."""
+"""An estimator whose largest value is this many times the second least largest (with three or
+more; of two, their median) is off the scale, whatever their number: with two drifting to 300 m
+and two at 5 m, the axis fits the two at 5 m and names the others (the median of four set it at
+300 m and flattened the good ones)."""
 OFF_SCALE_GROUP = 4.0
 """In a group's plot (:func:`grouped`), a curve whose largest value is this many times the group's
 least largest is off the scale: the axis fits the group's best (a filters' plot is about the EKF,
@@ -195,7 +198,7 @@ def on_top(xy: np.ndarray) -> float:
 
 def scale(series: dict[str, np.ndarray], best: bool = False) -> tuple[float | None, dict[str, float]]:
     """A value axis top for curves ``name -> values`` that no diverging one sets: 1.1 times the
-    largest value among those whose largest is within ``OFF_SCALE`` times the median largest
+    largest value among those whose largest is within ``OFF_SCALE`` times the second least largest
     (``best``: within ``OFF_SCALE_GROUP`` times the least largest); and the ones left above it,
     with their largest. ``(None, {})`` when none diverges."""
     peaks = {n: float(np.nanmax(np.abs(v))) for n, v in series.items() if np.isfinite(v).any()}
@@ -204,9 +207,10 @@ def scale(series: dict[str, np.ndarray], best: bool = False) -> tuple[float | No
     if best:
         least = min(peaks.values())
         off = {n: p for n, p in peaks.items() if p > OFF_SCALE_GROUP * max(least, 1e-12)}
-    else:
-        median = float(np.median(list(peaks.values())))
-        off = {n: p for n, p in peaks.items() if p > OFF_SCALE * max(median, 1e-12)}
+    else:  # three or more: the second least largest (one far better curve does not set it); two: their median
+        ranked = sorted(peaks.values())
+        ref = ranked[1] if len(ranked) >= 3 else float(np.median(ranked))
+        off = {n: p for n, p in peaks.items() if p > OFF_SCALE * max(ref, 1e-12)}
     if not off:
         return None, {}
     return 1.1 * max(p for n, p in peaks.items() if n not in off), off

@@ -18,7 +18,7 @@ from workbench.estimation.angles import wrap
 from workbench.experiments import truthfree
 from workbench.experiments.contract import RunSummary as Summary
 from workbench.experiments.omni import bounds as omni_bounds
-from workbench.experiments.omni import graph
+from workbench.experiments.omni import graph, survey
 from workbench.experiments.omni.config import OmniConfig
 from workbench.experiments.omni.estimate import SlamEstimate
 from workbench.experiments.omni.run import RunResult
@@ -99,6 +99,7 @@ class RunSummary(Summary):
     repairs: dict = field(default_factory=dict)  # what the real data needed to be read (omni.real)
     bounds: dict = field(default_factory=dict)  # delay -> {position, heading} (G,) variances; "map" (N,)
     reference: str | None = None  # no truth: ``errors`` are departures from this smoother, ``nees`` disagreements
+    survey: dict[str, dict] = field(default_factory=dict)  # each map against the landmark survey (:mod:`.survey`)
 
 
 def summarise(result: RunResult, cfg: OmniConfig, run: int) -> RunSummary:
@@ -129,8 +130,13 @@ def summarise(result: RunResult, cfg: OmniConfig, run: int) -> RunSummary:
                           else np.full(len(grid), np.nan))
     delays = {n: result.estimators[n].delay for n in result.estimates if n in result.estimators}
     crb = result.shared("bounds", lambda: bounds(data, cfg, result.keyframes))
+    mapped = {}
+    for name, est in result.estimates.items():
+        found = survey.compare(est.final_map, data.landmarks, data.landmark_ids) if len(est.final_map) else None
+        if found is not None:
+            mapped[name] = found
     return RunSummary(run, data.t[grid], errs, sig, nees, result.images.stats if result.images is not None else None,
-                      delays, dict(data.repairs or {}), crb, reference, failed=dict(result.failed))
+                      delays, dict(data.repairs or {}), crb, reference, mapped, failed=dict(result.failed))
 
 
 def bound_kind(delay: float) -> str:
@@ -148,6 +154,9 @@ def statistics(cfg: OmniConfig, runs: list[RunSummary], stats: dict) -> None:
     if runs[0].bounds:
         for name, entry in stats["estimators"].items():
             entry["bound_kind"] = bound_kind(runs[0].delays.get(name, 0.0))
+    for name, found in runs[0].survey.items():  # run 0's map against the survey, landmark by landmark
+        if name in stats["estimators"]:
+            stats["estimators"][name]["survey"] = found
     if runs[0].repairs:
         stats["data_repairs"] = runs[0].repairs
     if runs[0].images is not None:

@@ -72,8 +72,8 @@ def aligned_map_error(data: OmniData, est: SlamEstimate) -> Values | None:
 
 
 def landmarks(data: OmniData, est: SlamEstimate) -> Values:
-    """1 for each landmark in the final map."""
-    return Values(np.isfinite(_map_errors(data, est)).astype(float))
+    """1 for each landmark in the final map, surveyed or not (a log without a survey maps them too)."""
+    return Values(np.isfinite(est.final_map).all(axis=1).astype(float))
 
 
 def init_delay(data: OmniData, est: SlamEstimate) -> Values:

@@ -265,6 +265,25 @@ def _pending(first: RunResult, attempts: list) -> tuple[np.ndarray, np.ndarray]:
     return first.data.t[np.array(steps, int)] if steps else np.zeros(0), xy
 
 
+FAR_OFF = (255, 0, 200)
+"""The colour of the landmarks far off the survey, labelled (:mod:`.survey`)."""
+
+
+def _far_off(rec: rr.RecordingStream, path: str, est, found: dict | None, ids: np.ndarray) -> None:
+    """The landmarks of a map far off the survey, ringed and labelled at their final estimate: by
+    id and error, and the pair the survey or the ids look to have swapped."""
+    if not found or not found["far"]:
+        return
+    partner = {a: b for a, b in found["swapped"]} | {b: a for a, b in found["swapped"]}
+    index = {int(i): k for k, i in enumerate(ids)}
+    where = [index[i] for i in found["far"]]
+    xy = est.final_map[where]
+    labels = [f"id {i}: {found['errors'][str(i)]:.1f} m off"
+              + (f", swapped with id {partner[i]}?" if i in partner else "") for i in found["far"]]
+    rec.log(path, rr.Points3D(np.c_[xy, np.full(len(xy), 0.2)], colors=[FAR_OFF], radii=[0.6], labels=labels,
+                              show_labels=True), static=True)
+
+
 def record_run(rec: rr.RecordingStream, first: RunResult, zero: RunSummary) -> None:
     """Log run 0 in full (``zero`` is its evaluation): the maps, its errors, sigmas and NEES, the
     round images; what the Monte Carlo runs add comes with :func:`record_runs`."""
@@ -305,6 +324,7 @@ def record_run(rec: rr.RecordingStream, first: RunResult, zero: RunSummary) -> N
             if est.map_cov is not None:
                 draw.ellipse_sets(rec, f"{base}/landmark_ellipses", TL, d.t[est.map_steps], est.map_mean,
                                   est.map_cov, rgb)
+        _far_off(rec, f"{base}/far_off", est, getattr(zero, "survey", {}).get(name), d.landmark_ids)
         rt, counts, starts, ends = _rays(first, pose, ray_len)
         if len(rt):
             draw.segment_sets(rec, f"{base}/rays", TL, rt, counts, starts, ends, (255, 255, 120), 0.03)

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from workbench.experiments import markdown
 from workbench.experiments.markdown import number as _f
+from workbench.experiments.omni import survey
 from workbench.experiments.omni.config import BATCH_STARTS
 from workbench.experiments.omni.metrics import BOUNDS, METRICS, TABLE
 
@@ -48,6 +49,8 @@ def table(stats: dict) -> str:
                         + f" of {stats['runs']} run(s) (of the starts tried, the lowest cost on the data)")
         if e.get("bearings_gated"):
             bits.append(f"{e['bearings_gated']:.0f} bearing(s) left out by the gate (misreads, outliers)")
+        if e.get("survey") and (e.get("position_rmse_whole_run") is None or e["survey"]["far"]):
+            bits.append(survey.describe(e["survey"]) + (" (run 0)" if stats["runs"] > 1 else ""))
         lines.append(f"- {name}: " + "; ".join(bits))
     if stats.get("data_repairs"):
         lines += ["", "Reading the log: " + ", ".join(f"{k.replace('_', ' ')} {v}"
