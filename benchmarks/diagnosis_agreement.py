@@ -8,12 +8,16 @@ Cells:
   assumed x0.3, x1 and x3 of the data's;
 * omni, a synthetic increments log (:mod:`workbench.experiments.omni.faults`): as it is, 5 % of
   the bearings misread (another landmark's id), its odometry covariance stated 10x too small,
-  and its stated start heading 30 deg off (every start of the batch rotated with it);
+  and the batch started from a mirrored and from a rotated dead reckoning alone (``mirrored``,
+  ``rotated``);
 * sea, the paper's simulation: the acceleration noise and the angles' assumed x0.3, x1 and x3.
 
 A cell **agrees** where the diagnosis says "consistent" exactly where the NEES is inside its
 band; the goals (issue 34): agreement in at least 90 % of the cells, and no estimator whose
-error is 5x its bound called consistent.
+error is 5x its bound called consistent. Beside it, whether the diagnosis names the fault the
+cell was built with (:data:`FAULTS`): the NEES of a pose cannot see every wrong noise (a bearing
+noise assumed 3x too wide moves the pose's NEES little where the odometry holds the pose), so
+the two measures differ where the NEES has no power.
 
     .venv/bin/python benchmarks/diagnosis_agreement.py [--runs-omni 4] [--runs-sea 20] [--out FILE.md]
 """
@@ -21,7 +25,6 @@ error is 5x its bound called consistent.
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import sys
 import tempfile
@@ -31,6 +34,15 @@ from pathlib import Path
 from workbench import api
 from workbench.experiments import diagnosis
 from workbench.experiments.omni import faults
+
+FAULTS = {"paper, as simulated": "consistent", "synthetic log, as it is": "consistent",
+          "paper, odometry x0.3": "too narrow", "paper, odometry x3": "too wide",
+          "paper, bearings x0.3": "too narrow", "paper, bearings x3": "too wide",
+          "synthetic log, 5 % bearings misread": "outliers",
+          "synthetic log, odometry stated 10x too small": "too narrow",
+          "paper, acceleration x0.3": "too narrow", "paper, acceleration x3": "too wide",
+          "paper, angles x0.3": "too narrow", "paper, angles x3": "too wide"}
+"""The verdict each cell's fault calls for (the paper's EKF, inconsistent on every cell, aside)."""
 
 
 def _cells(runs_omni: int, runs_sea: int, folder: Path) -> list[tuple[str, str, dict]]:
@@ -51,20 +63,52 @@ def _cells(runs_omni: int, runs_sea: int, folder: Path) -> list[tuple[str, str, 
         where = folder / name.replace(" ", "_")
         faults.write(where, f, force=True)
         out.append(("omni", f"synthetic log, {name}", {"scenario": "log", "data": str(where)}))
-    rotated = folder / "start_rotated"
-    faults.write(rotated, faults.Faults(), force=True)
-    meta = json.loads((rotated / "manifest.json").read_text())
-    meta["start"][2] += math.radians(30.0)
-    (rotated / "manifest.json").write_text(json.dumps(meta))
-    out.append(("omni", "synthetic log, start heading 30 deg off", {"scenario": "log", "data": str(rotated)}))
+    here = Path(__file__).resolve()
+    out.append(("omni", "synthetic log, the batch from a mirrored or a rotated start",
+                {"scenario": "log", "data": str(folder / "as_it_is"),
+                 "estimators": f"gtsam-batch,{here}:mirrored,{here}:rotated"}))
     for what, fields in (("acceleration", {"assume_sigma_acc": sea.sigma_acc}),
-                         ("angles", {"assume_sigma_alpha": sea.sigma_alpha, "assume_sigma_beta": sea.sigma_beta})):
+                         ("angles", {"assume_sigma_alpha_arcmin": sea.sigma_alpha_arcmin,
+                                    "assume_sigma_beta_arcmin": sea.sigma_beta_arcmin})):
         for k in (0.3, 1.0, 3.0):
             if what == "angles" and k == 1.0:
                 continue
             out.append(("sea", f"paper, {what} x{k:g}" if k != 1.0 else "paper, as simulated",
                         {"scenario": "paper", "runs": runs_sea, **{f: v * k for f, v in fields.items()}}))
     return out
+
+
+def _turned(data, cfg, how: str):
+    """The batch started from dead reckoning mirrored about the start's heading, or rotated 90 deg
+    about the start, and from nothing else (no start of lower cost to fall back on)."""
+    import numpy as np
+
+    from workbench.experiments.omni import graph
+
+    kf = graph.keyframes(data, cfg)
+    dr = kf.dead_reckoning.copy()
+    x0, y0, h = dr[0]
+    c, s = math.cos(h), math.sin(h)
+    rel = dr[:, :2] - [x0, y0]
+    u, v = rel @ [c, s], rel @ [-s, c]  # along and across the start's heading
+    if how == "mirrored":
+        v, phi = -v, 2 * h - dr[:, 2]
+    else:
+        u, v, phi = -v, u, dr[:, 2] + math.pi / 2
+    poses = np.column_stack([x0 + c * u - s * v, y0 + s * u + c * v, phi])
+    poses[0] = dr[0]
+    start = graph.Start(how, poses, np.full((len(data.landmarks), 2), np.nan), set())
+    return graph.batch(data, cfg, kf, starts=[start])
+
+
+def mirrored(data, cfg):
+    """gtsam-batch from a mirrored start (:func:`_turned`)."""
+    return _turned(data, cfg, "mirrored")
+
+
+def rotated(data, cfg):
+    """gtsam-batch from a start rotated 90 deg (:func:`_turned`)."""
+    return _turned(data, cfg, "rotated")
 
 
 def _efficiency(e: dict) -> float | None:
@@ -80,7 +124,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--runs-sea", type=int, default=20)
     ap.add_argument("--out", type=Path, default=None, help="also write the table here (markdown)")
     args = ap.parse_args(argv)
-    rows, agree, total, fooled = [], 0, 0, []
+    rows, agree, total, fooled, faults_named, faults_total = [], 0, 0, [], 0, 0
     t0 = time.perf_counter()
     with tempfile.TemporaryDirectory() as tmp:
         for experiment, cell, kw in _cells(args.runs_omni, args.runs_sea, Path(tmp)):
@@ -91,24 +135,34 @@ def main(argv: list[str] | None = None) -> int:
             result = api.run(experiment, scenario, **kw)
             for name, e in result.metrics["estimators"].items():
                 d, nees = e.get("diagnosis"), e.get("consistent_with_truth")
-                if d is None or nees is None or d["verdict"] == "not enough data":
+                if d is None or d["verdict"] == "not enough data":
                     continue
                 eff = _efficiency(e)
                 said = d["verdict"] == "consistent"
-                total += 1
-                agree += said == nees
+                if nees is not None:
+                    total += 1
+                    agree += said == nees
                 if said and eff is not None and eff > 5.0:
                     fooled.append(f"{experiment} {cell} {name}")
-                rows.append((experiment, cell, name, diagnosis.line(d), "consistent" if nees else "not consistent",
-                             e.get("anees"), eff, "yes" if said == nees else "**no**"))
+                fault = FAULTS.get(cell)
+                named = None if fault is None or name == "ekf-paper" else d["verdict"] == fault
+                if named is not None:
+                    faults_total += 1
+                    faults_named += named
+                rows.append((experiment, cell, name, diagnosis.line(d),
+                             "-" if nees is None else "consistent" if nees else "not consistent",
+                             e.get("anees"), eff, "-" if nees is None else "yes" if said == nees else "**no**",
+                             "-" if named is None else "yes" if named else "**no**"))
             print(f"{experiment} {cell}: done ({time.perf_counter() - t0:.0f} s)", file=sys.stderr)
-    lines = ["| experiment | cell | estimator | diagnosis (no truth) | NEES verdict | ANEES | error / bound | agree |",
-             "|---|---|---|---|---|---|---|---|"]
+    lines = ["| experiment | cell | estimator | diagnosis (no truth) | NEES verdict | ANEES | error / bound | "
+             "agrees with the NEES | names the cell's fault |", "|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
         lines.append("| " + " | ".join([r[0], r[1], r[2], r[3], r[4], "-" if r[5] is None else f"{r[5]:.3g}",
-                                        "-" if r[6] is None else f"{r[6]:.2f}", r[7]]) + " |")
-    lines += ["", f"agreement: {agree} of {total} ({100 * agree / max(total, 1):.0f} %); called consistent with the "
-                  f"error over 5x its bound: {len(fooled)}" + (f" ({', '.join(fooled)})" if fooled else ""),
+                                        "-" if r[6] is None else f"{r[6]:.2f}", r[7], r[8]]) + " |")
+    lines += ["", f"agreement with the NEES verdict: {agree} of {total} ({100 * agree / max(total, 1):.0f} %); "
+                  f"the cell's own fault named: {faults_named} of {faults_total} "
+                  f"({100 * faults_named / max(faults_total, 1):.0f} %); called consistent with the error over 5x its "
+                  f"bound: {len(fooled)}" + (f" ({', '.join(fooled)})" if fooled else ""),
               f"({time.perf_counter() - t0:.0f} s)"]
     text = "\n".join(lines)
     print(text)

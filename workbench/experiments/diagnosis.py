@@ -8,19 +8,22 @@ innovations and a causal estimator's disagreement with the run's smoother. The r
 pooled and read (:func:`diagnose`), in this order:
 
 1. **not enough data to say**: fewer than :data:`MIN_ROWS` measurements with a figure;
-2. **noise assumed too narrow**, by what factor (sigma) and which group: the maximum
+2. **outliers / heavy tails**: a heavy tail the likelihood ratio keeps (p < :data:`ALPHA`), holding
+   at least :data:`TAIL_FIRST` and at most :data:`OUTLIER_MAX` of the measurements (a larger one is
+   the noise being wrong), with the share beyond the gate against the Gaussian's and the core's
+   factors beside it (outliers bend a smoother: its odometry then looks too narrow too); a tail
+   of :data:`TAIL_SHARE` to :data:`TAIL_FIRST` is the verdict after 3-5 below;
+3. **noise assumed too narrow**, by what factor (sigma) and which group: the maximum
    likelihood of the noise's variance factor over every measurement handed, those the gate left
    out too (:mod:`~workbench.estimation.noisefit`); for a filter the state's (motion noise) and the
    measurement noise's apart where the innovations' shares tell them apart; for a smoother each
    group's variance component (Förstner 1979) from its residuals and redundancy. A factor counts
    where its 95 % interval leaves out 1 and it is beyond :data:`TOLERANCE`;
-3. **wrong basin**: a causal estimator the run's smoother contradicts far beyond both their
+4. **wrong basin**: a causal estimator the run's smoother contradicts far beyond both their
    covariances (the median of ``d' (P_f + P_s)^-1 d``, no larger than chi-square with the state's
    dimension for a consistent pair, over its 99.9 % point: most of the run beyond 4 sigma;
    Bar-Shalom, Li, Kirubarajan, sec. 5.4), where the noise is not too narrow (that explains it);
-4. **noise assumed too wide**, as 2;
-5. **outliers / heavy tails**: a heavy tail the likelihood ratio keeps (p < :data:`ALPHA`), with
-   the share of the measurements it holds and the share beyond the gate against the Gaussian's;
+5. **noise assumed too wide**, as 3;
 6. **left out**: more measurements left out (gated, failed) than the estimator's own gate expects
    (a binomial test at :data:`ALPHA`) that nothing above explains;
 7. **correlated innovations**: the whiteness test fails (a model error a scale does not mend);
@@ -52,6 +55,13 @@ TOLERANCE = 1.25
 """A noise factor (on the sigma) within ``1/TOLERANCE .. TOLERANCE`` is not reported as wrong: a
 quarter on the sigma is about the smallest change a tuning acts on, and the intervals, which
 treat the innovations as independent, are narrower than the truth beneath it."""
+TAIL_FIRST = 0.03
+"""A tail holding at least this share (three times what a 99 % gate drops) is the verdict before the
+noise's factors: outliers bend a smoother, and its odometry then looks too narrow too. A smaller
+one is named after them, in the reason."""
+OUTLIER_MAX = 0.25
+"""A tail holding more than this share is not read as outliers (a minority the model does not
+explain) but as the noise itself being wrong: the core's factor then decides."""
 TAIL_SHARE = 0.01
 """A heavy tail is reported where it holds at least this share of the measurements (and more
 than the gate expects to leave out): a smaller one is a few misreads, which a 99 % gate is for."""
@@ -88,6 +98,7 @@ class Evidence:
     whiteness: list[float] = field(default_factory=list)
     disagreement: np.ndarray | None = None
     dimension: int = 0
+    unmapped: list[float] = field(default_factory=list)  # [measurements of what the map does not hold, all]
 
 
 def _censor(kept: np.ndarray, q: np.ndarray, dof: np.ndarray, gate: float | None) -> np.ndarray:
@@ -150,6 +161,9 @@ def evidence(estimate: Any, metrics: Mapping[str, Any] | None = None, dimension:
     w = metrics.get("innovation_whiteness")
     if w is not None and np.isfinite(w.values).any():
         ev.whiteness = [float(np.nanmean(w.values))]
+    u = metrics.get("unmapped")
+    if u is not None and len(u.values):
+        ev.unmapped = [float(np.sum(u.values)), float(len(u.values))]
     d = metrics.get("smoother_gap")
     if d is not None and dimension:
         ev.disagreement, ev.dimension = np.asarray(d.values, float), dimension
@@ -187,9 +201,11 @@ def pool(items: list[Evidence]) -> Evidence | None:
             a = groups.get(g, (0.0, 0.0, 0))
             groups[g] = (a[0] + s, a[1] + r, a[2] + n)
     dis = [e.disagreement for e in items if e.disagreement is not None]
+    unmapped = [sum(e.unmapped[i] for e in items if e.unmapped) for i in (0, 1)] if any(e.unmapped for e in items) \
+        else []
     return Evidence(items[0].kind, cat("q"), cat("dof"), cat("kept"), cat("share"), cat("censor"), items[0].gate,
                     groups, [w for e in items for w in e.whiteness], np.concatenate(dis) if dis else None,
-                    items[0].dimension)
+                    items[0].dimension, unmapped)
 
 
 def _outside(value: float | None, interval: tuple[float, float] | None) -> int:
@@ -211,9 +227,11 @@ def _pct(x: float) -> str:
 
 def diagnose(ev: Evidence | None, names: Mapping[str, str] | None = None) -> dict | None:
     """The diagnosis of one estimator from its pooled evidence (the module's text): ``verdict``
-    (one of :data:`VERDICTS`), ``factor`` (the sigma factor where the noise is wrong: over 1 too
-    narrow), ``group``, ``reason`` (one line) and the figures. ``names``: what the groups are
-    called in words (``{"state": "odometry"}``)."""
+    (one of :data:`VERDICTS`), ``consistent`` (whether the estimator is, whatever the data hold:
+    "consistent", or "outliers" that its gate took out with its noise right otherwise), ``factor``
+    (the sigma factor where the noise is wrong: over 1 too narrow), ``group``, ``reason`` (one
+    line) and the figures. ``names``: what the groups are called in words (``{"state":
+    "odometry"}``)."""
     if ev is None:
         return None
     names = {"state": "motion", "measurement": "measurement", **(names or {})}
@@ -273,6 +291,9 @@ def diagnose(ev: Evidence | None, names: Mapping[str, str] | None = None) -> dic
                                                       if v["interval"] else "")) if v["identified"] else
                         f"{g} not identified" for g, v in groups.items()))
     direction = {g: _outside(v["factor"], tuple(v["interval"])) if v["identified"] else 0 for g, v in groups.items()}
+    if ev.unmapped and ev.unmapped[1]:
+        out["unmapped"] = ev.unmapped[0] / ev.unmapped[1]
+        said += f"; {_pct(out['unmapped'])} of all the measurements of what its map does not hold (not counted)"
     if tailed:
         said += f"; a tail of {_pct(best.eps)} {math.sqrt(best.c):.0f}x wider"
     basin = None
@@ -286,6 +307,18 @@ def diagnose(ev: Evidence | None, names: Mapping[str, str] | None = None) -> dic
             said = basin + "; " + said
     narrow = [g for g, d in direction.items() if d > 0]
     wide = [g for g, d in direction.items() if d < 0]
+    out["core"] = {g: groups[g]["factor"] for g in narrow + wide}  # what the noise factors say beside a tail
+    def outliers() -> dict:
+        # the estimator is consistent where its gate took the tail out and its noise is right otherwise
+        handled = not out["core"] and beyond >= 0.5 * best.eps and basin is None
+        return {"verdict": "outliers", "factor": None, "group": None, "consistent": handled,
+                "reason": f"outliers or heavy tails: {_pct(beyond)} left out, {_pct(best.eps)} in a tail "
+                          f"{math.sqrt(best.c):.0f}x wider than the noise"
+                          + (" (its gate took them out: consistent on the rest)" if handled else "") + "; " + said,
+                **out}
+
+    if tailed and TAIL_FIRST <= best.eps <= OUTLIER_MAX:
+        return outliers()
     if narrow:
         f = max(groups[g]["factor"] for g in narrow)
         return {"verdict": "too narrow", "factor": f, "group": ", ".join(narrow),
@@ -296,11 +329,9 @@ def diagnose(ev: Evidence | None, names: Mapping[str, str] | None = None) -> dic
         f = min(groups[g]["factor"] for g in wide)
         return {"verdict": "too wide", "factor": f, "group": ", ".join(wide),
                 "reason": f"noise assumed too wide by about {1 / f:.2g}x ({', '.join(wide)}): " + said, **out}
+    if tailed and best.eps <= OUTLIER_MAX:
+        return outliers()
     excess = p_left < ALPHA and left > expected
-    if tailed:
-        return {"verdict": "outliers", "factor": None, "group": None,
-                "reason": f"outliers or heavy tails: {_pct(beyond)} left out, {_pct(best.eps)} in a tail "
-                          f"{math.sqrt(best.c):.0f}x wider than the noise; " + said, **out}
     if excess:
         return {"verdict": "left out", "factor": None, "group": None,
                 "reason": "more left out than its model expects: " + said, **out}
@@ -311,7 +342,7 @@ def diagnose(ev: Evidence | None, names: Mapping[str, str] | None = None) -> dic
         return {"verdict": "correlated", "factor": None, "group": None,
                 "reason": f"innovations not white ({w:.2f} of the lags outside their band, at most {WHITE_MAX}): "
                           "a model error no noise scale mends; " + said, **out}
-    return {"verdict": "consistent", "factor": None, "group": None, "reason": said, **out}
+    return {"verdict": "consistent", "factor": None, "group": None, "consistent": True, "reason": said, **out}
 
 
 def attach(stats: dict, evidence: list[Mapping[str, Evidence]], names: Mapping[str, str] | None = None) -> None:
@@ -326,9 +357,10 @@ def attach(stats: dict, evidence: list[Mapping[str, Evidence]], names: Mapping[s
         entry["diagnosis"] = found
         entry["left_out"] = found["left_out"]
         entry["left_out_expected"] = found["left_out_expected"]
-        if found["verdict"] != "not enough data":
+        found.setdefault("consistent", False if found["verdict"] != "not enough data" else None)
+        if found["consistent"] is not None:
             entry["consistent_without_truth"] = bool(entry.get("consistent_without_truth", True)
-                                                     and found["verdict"] == "consistent")
+                                                     and found["consistent"])
 
 
 def line(d: Mapping | None) -> str:
@@ -340,7 +372,8 @@ def line(d: Mapping | None) -> str:
         f = d["factor"] if v == "too narrow" else 1.0 / d["factor"]
         return f"{v} x{f:.1f} ({d['group']})"
     if v == "outliers":
-        return f"outliers {_pct(d.get('tail_share') or d['left_out'])}"
+        core = ", ".join(f"{g} x{f:.1f}" for g, f in (d.get("core") or {}).items())
+        return f"outliers {_pct(d.get('tail_share') or d['left_out'])}" + (f" ({core})" if core else "")
     if v == "left out":
         return f"left out {_pct(d['left_out'])}"
     return v

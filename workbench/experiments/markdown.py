@@ -46,6 +46,7 @@ def metric_table(stats: Mapping, builtin: Sequence[Any], columns: Sequence[str],
     cols = metric_columns(stats, builtin, columns)
     runs = stats.get("runs", 1)
     rows = []
+    diagnosed = any(e.get("diagnosis") for e in stats["estimators"].values())
     for name, e in stats["estimators"].items():
         cells = [name]
         for key, _, fmt in cols:
@@ -54,8 +55,9 @@ def metric_table(stats: Mapping, builtin: Sequence[Any], columns: Sequence[str],
             if spread and runs > 1 and std is not None and cell != "-":
                 cell += f" +- {std:.2f}"
             cells.append(cell)
-        rows.append(cells)
-    return table(["estimator", *(title for _, title, _ in cols)], rows)
+        rows.append(cells + ([diagnosis.line(e.get("diagnosis")) or "-"] if diagnosed else []))
+    return table(["estimator", *(title for _, title, _ in cols), *(["diagnosis (no truth)"] if diagnosed else [])],
+                 rows)
 
 
 def bounds_table(stats: Mapping, quantities: Sequence[tuple[str, str, str, str]]) -> list[str]:

@@ -76,6 +76,16 @@ def landmarks(data: OmniData, est: SlamEstimate) -> Values:
     return Values(np.isfinite(est.final_map).all(axis=1).astype(float))
 
 
+def unmapped(data: OmniData, est: SlamEstimate) -> Values | None:
+    """1 for each bearing of a landmark the final map does not hold (never initialised, or taken
+    out), 0 for the others: the data an estimator with a map could not use (truth-free). None
+    without a map."""
+    lm = est.final_map
+    if est.map_steps is None or not len(est.map_steps) or len(data.meas_lm) == 0:
+        return None
+    return Values((~np.isfinite(lm[data.meas_lm]).all(axis=1)).astype(float), data.t[data.meas_step])
+
+
 def init_delay(data: OmniData, est: SlamEstimate) -> Values:
     """Seconds from each landmark's first sighting to its initialisation (NaN: never)."""
     d = np.full(len(data.landmarks), np.nan)
@@ -337,6 +347,9 @@ METRICS: tuple[Metric, ...] = (
            reduce="mean", at_most=truthfree.BELOW_MAX, truth_free=True, window=False),
     Metric("landmarks", landmarks, "", "landmarks in the final map, mean over runs", reduce="sum", across="mean",
            fmt=".1f"),
+    Metric("unmapped", unmapped, "", "share of the bearings whose landmark the final map does not hold (never "
+           "initialised or taken out: data the estimator could not use; truth-free)", reduce="mean",
+           truth_free=True, window=False, fmt=".3f"),
     Metric("init_seconds_mean", init_delay, "s", "mean delay from a landmark's first sighting to its initialisation",
            reduce="mean"),
     Metric("init_seconds_median", init_delay, "s", "median initialisation delay", reduce="median", label="init s",

@@ -101,7 +101,7 @@ def smoother_gap(data: SeaData, est: Estimate, ctx: MetricContext) -> Values | N
     return Values(consistency.disagreement(est.position, est.covariance, s.position, -s.covariance), data.t)
 
 
-def residual(data: SeaData, est: Estimate) -> Values | None:
+def residual(data: SeaData, est: Estimate, ctx: MetricContext | None = None) -> Values | None:
     """Each step's measured angles against those the estimate's position predicts from the
     measured camera, ``r = (alpha~ - h_alpha, beta~ - h_beta)``, normalised by the measurement's
     noise with that fix's folded in (:func:`.geometry.effective_noise`) less the estimate's own
@@ -112,9 +112,15 @@ def residual(data: SeaData, est: Estimate) -> Values | None:
     It holds for one that keeps the camera as an offset (:mod:`.observer`) too: the fix's error
     less the offset's, ``sigma_o^2 (1 - 1/n)`` per axis, is what ``R - J P J'`` leaves when P
     holds the offset's ``sigma_o^2 / n``. Without a covariance, ``r' R^-1 r``: a figure to
-    compare, no test (the geometric inverse fits every measurement exactly: 0)."""
+    compare, no test (the geometric inverse fits every measurement exactly: 0). The noise is the one
+    the estimators were told (``--assume-sigma-*``, :meth:`.contract.Experiment.assumed`): a test
+    without truth knows no other."""
     if est.position is None or not np.isfinite(est.position).any():
         return None
+    if ctx is not None and ctx.cfg is not None:
+        from workbench.experiments.sea import run as sea_run
+
+        data = ctx.shared("assumed", lambda: sea_run.assumed(data, ctx.cfg))
     alpha, beta = geometry.angles(est.position, data.observer_meas, data.course, data.height)
     r = np.stack([wrap(data.alpha_meas - alpha), data.beta_meas - beta], axis=-1)
     J = geometry.angle_jacobian(est.position, data.observer_meas, data.height)
