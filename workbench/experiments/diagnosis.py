@@ -253,7 +253,9 @@ def diagnose(ev: Evidence | None, names: Mapping[str, str] | None = None) -> dic
     out["left_out_p"] = p_left
     censor = np.where(cens, ev.censor, np.inf) if ev.censor is not None else None
     plain, heavy, p_tail = noisefit.tail_test(ev.q, ev.dof, ev.share, censor)
-    tailed = heavy is not None and p_tail < ALPHA and heavy.eps >= max(TAIL_SHARE, expected)
+    # a tail is a minority the core does not explain: one fitted to more than OUTLIER_MAX is the
+    # mixture taking up a noise that is wrong throughout (the Gaussian's factor then says how wrong)
+    tailed = (heavy is not None and p_tail < ALPHA and max(TAIL_SHARE, expected) <= heavy.eps <= OUTLIER_MAX)
     best = heavy if tailed else plain
     if best is None:
         return {"verdict": "not enough data", "factor": None, "group": None, "reason": "no figure to fit", **out}
@@ -317,7 +319,7 @@ def diagnose(ev: Evidence | None, names: Mapping[str, str] | None = None) -> dic
                           + (" (its gate took them out: consistent on the rest)" if handled else "") + "; " + said,
                 **out}
 
-    if tailed and TAIL_FIRST <= best.eps <= OUTLIER_MAX:
+    if tailed and best.eps >= TAIL_FIRST:
         return outliers()
     if narrow:
         f = max(groups[g]["factor"] for g in narrow)
@@ -329,7 +331,7 @@ def diagnose(ev: Evidence | None, names: Mapping[str, str] | None = None) -> dic
         f = min(groups[g]["factor"] for g in wide)
         return {"verdict": "too wide", "factor": f, "group": ", ".join(wide),
                 "reason": f"noise assumed too wide by about {1 / f:.2g}x ({', '.join(wide)}): " + said, **out}
-    if tailed and best.eps <= OUTLIER_MAX:
+    if tailed:
         return outliers()
     excess = p_left < ALPHA and left > expected
     if excess:
