@@ -215,3 +215,15 @@ def test_a_swapped_survey_on_a_log_is_named_and_marked(tmp_path):
               if str(chunk.entity_path) == "/map/gtsam-batch/far_off"
               for row in chunk.to_record_batch().column("Points3D:labels").to_pylist() for lab in row or []]
     assert any(f"id {pair[0]}:" in lab and f"swapped with id {pair[1]}" in lab for lab in labels), labels
+
+
+def test_the_whole_distribution_is_tested_not_its_mean():
+    """Student-t (3 dof) innovations scaled to a mean NIS of 1: the mean passes, the Cramér-von Mises
+    test of their distribution against chi-square does not, scaled or not; chi-square draws pass."""
+    rng = np.random.default_rng(9)
+    t = rng.standard_t(3, 3000) ** 2
+    t /= t.mean()
+    bad = diagnosis.goodness_of_fit(t, np.ones(3000), 1.0)
+    assert bad["gof_p"] < 1e-3 and bad["gof_scaled_p"] < 1e-3
+    good = diagnosis.goodness_of_fit(rng.chisquare(1, 3000), np.ones(3000), 1.0)
+    assert good["gof_p"] > 0.01

@@ -259,6 +259,7 @@ def diagnose(ev: Evidence | None, names: Mapping[str, str] | None = None) -> dic
     best = heavy if tailed else plain
     if best is None:
         return {"verdict": "not enough data", "factor": None, "group": None, "reason": "no figure to fit", **out}
+    out.update(goodness_of_fit(ev.q, ev.dof, plain.k))
     out["scale"] = math.sqrt(best.k)
     out["tail_share"] = best.eps if tailed else 0.0
     out["tail_width"] = math.sqrt(best.c) if tailed else None
@@ -293,6 +294,9 @@ def diagnose(ev: Evidence | None, names: Mapping[str, str] | None = None) -> dic
                                                       if v["interval"] else "")) if v["identified"] else
                         f"{g} not identified" for g, v in groups.items()))
     direction = {g: _outside(v["factor"], tuple(v["interval"])) if v["identified"] else 0 for g, v in groups.items()}
+    if "gof_p" in out:
+        said += (f"; the distribution against chi-square: p {out['gof_p']:.2g}, scaled by the fit's factor "
+                 f"p {out['gof_scaled_p']:.2g} (Cramér-von Mises)")
     if ev.unmapped and ev.unmapped[1]:
         out["unmapped"] = ev.unmapped[0] / ev.unmapped[1]
         said += f"; {_pct(out['unmapped'])} of all the measurements of what its map does not hold (not counted)"
@@ -345,6 +349,26 @@ def diagnose(ev: Evidence | None, names: Mapping[str, str] | None = None) -> dic
                 "reason": f"innovations not white ({w:.2f} of the lags outside their band, at most {WHITE_MAX}): "
                           "a model error no noise scale mends; " + said, **out}
     return {"verdict": "consistent", "factor": None, "group": None, "consistent": True, "reason": said, **out}
+
+
+GOF_ROWS = 5000
+"""The goodness-of-fit tests read at most this many rows (every n-th): their p-values are figures
+to read beside the verdict, which the likelihood decides."""
+
+
+def goodness_of_fit(q: np.ndarray, dof: np.ndarray, k: float) -> dict:
+    """The Cramér-von Mises test of the normalised squared innovations of every measurement with
+    one (those a gate left out too) against chi-square with their dimension (``gof_p``: the
+    whole distribution, not its mean: Chen et al. 2018), and against it scaled by the Gaussian fit's
+    factor ``k`` (``gof_scaled_p``: whether a scale alone explains the shape); none where the
+    dimensions differ or a left-out measurement has no figure."""
+    seen = np.isfinite(q)
+    if not seen.any() or (~seen).any() or len(np.unique(dof[seen])) != 1:
+        return {}
+    x = q[seen][:: max(1, int(math.ceil(seen.sum() / GOF_ROWS)))]
+    m = float(dof[seen][0])
+    return {"gof_p": float(sstats.cramervonmises(x, sstats.chi2(m).cdf).pvalue),
+            "gof_scaled_p": float(sstats.cramervonmises(x / k, sstats.chi2(m).cdf).pvalue)}
 
 
 def attach(stats: dict, evidence: list[Mapping[str, Evidence]], names: Mapping[str, str] | None = None) -> None:

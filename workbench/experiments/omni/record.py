@@ -21,8 +21,8 @@ import rerun as rr
 import rerun.blueprint as rrb
 
 from workbench.estimation import metrics
+from workbench.experiments import diagnosis, truthfree
 from workbench.experiments import plots as metric_plots
-from workbench.experiments import truthfree
 from workbench.experiments.omni import metrics as omni_metrics
 from workbench.experiments.omni.evaluate import RunSummary, on_grid, smoothed_on_grid
 from workbench.experiments.omni.run import RunResult
@@ -112,14 +112,18 @@ def blueprint(names: list[str], scene: np.ndarray, curves: dict[str, views.Curve
     the "metrics" tab. The legend is in the first plot of each tab: the colours are the same below it.
     ``reference``: a log without truth, whose run-0 plots are each estimate's departure from this
     smoother and each causal one's disagreement with it; ``stats``: the metrics, whose failed
-    consistency verdicts the NEES and disagreement views name; ``groups`` (many estimators,
+    consistency verdicts the NEES and disagreement views name, and each estimator's truth-free
+    diagnosis its map's title ends with (:mod:`..diagnosis`); ``groups`` (many estimators,
     :func:`.plots.groups`): run 0's errors and sigmas as small multiples, a plot per group on one
     axis, and the NEES in a tab of its own."""
 
     def plot(origin: str, name: str, legend: bool = True) -> rrb.TimeSeriesView:
         return views.plot(origin, name, span, curves.get(origin), legend=legend)
 
-    panes = [views.top_down("/", f"{n} (top-down, m)", scene, contents=["/world/**", f"/map/{n}/**"])
+    found = {n: e.get("diagnosis") for n, e in (stats or {}).get("estimators", {}).items()}
+    panes = [views.top_down("/", f"{n} (top-down, m)" + (f": {diagnosis.line(found[n])}"
+                                                         if found.get(n) else ""),
+                            scene, contents=["/world/**", f"/map/{n}/**"])
              for n in names]
     if with_images:
         panes.insert(0, rrb.Spatial2DView(origin="/camera", name="round image, detected lines"))
