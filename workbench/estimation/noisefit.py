@@ -115,6 +115,48 @@ class _Data:
         return out
 
 
+    def nll_grad(self, a: float, b: float, eps: float, c: float) -> tuple[float, np.ndarray]:
+        """:meth:`nll` and its gradient in ``(a, b, eps, c)`` (``b`` is ``a``'s where not split: its
+        part then adds to ``a``'s by the caller's chain rule): the score of each row's mixture,
+        ``d log p / d s`` of a chi-square scale, ``(q / 2s - m / 2) / s``, and of its tail beyond a
+        gate, ``x^(m/2) e^-x / (Gamma(m/2) Q s)``, ``x = g / 2s``."""
+        s = self.scale(a, b)
+        value, ds, de, dc = 0.0, np.zeros(self.rows), 0.0, 0.0
+        for mask, seen in ((self.seen, True), (~self.seen, False)):
+            if not mask.any():
+                continue
+            m, sm = self.m[mask], s[mask]
+            x = self.q[mask] if seen else self.g[mask]
+            scales = [(sm, 1.0)] + ([(c * sm, c)] if eps > 0.0 else [])
+            logs, dlogs = [], []
+            for sc, _ in scales:
+                if seen:
+                    logs.append(_logpdf(x, m, sc))
+                    dlogs.append((0.5 * x / sc - 0.5 * m) / sc)  # d log p / d sc
+                else:
+                    h = 0.5 * x / sc
+                    Q = np.maximum(special.gammaincc(0.5 * m, h), 1e-300)
+                    logs.append(np.log(Q))
+                    dlogs.append(np.exp(0.5 * m * np.log(np.maximum(h, 1e-300)) - h - special.gammaln(0.5 * m))
+                                 / (Q * sc))
+            if eps > 0.0:
+                lc, lt = math.log1p(-eps) + logs[0], math.log(eps) + logs[1]
+                both = np.logaddexp(lc, lt)
+                wc, wt = np.exp(lc - both), np.exp(lt - both)
+                ds[mask] = wc * dlogs[0] + wt * dlogs[1] * c
+                de += float(np.sum(wt / eps - wc / (1.0 - eps)))
+                dc += float(np.sum(wt * dlogs[1] * sm))
+            else:
+                both = logs[0]
+                ds[mask] = dlogs[0]
+            value -= float(np.sum(both))
+        if self.share is None:
+            da, db = float(np.sum(ds)), 0.0
+        else:
+            da, db = float(np.sum(ds * self.share)), float(np.sum(ds * (1.0 - self.share)))
+        return value, -np.array([da, db, de, dc])
+
+
 def _hessian(f, x: np.ndarray, h: float = 1e-3) -> np.ndarray:
     n = len(x)
     H = np.zeros((n, n))
@@ -153,6 +195,16 @@ def fit(q: np.ndarray, dof: np.ndarray | int, share: np.ndarray | None = None, c
     def f(x):
         return d.nll(*unpack(x))
 
+    def f_and_grad(x):  # the gradient in the log-parameters, by the chain rule
+        a, b, eps, c = unpack(x)
+        value, (ga, gb, ge, gc) = d.nll_grad(a, b, eps, c)
+        g = [ga * a] + ([gb * b] if split else [])
+        if not split:
+            g[0] += gb * a
+        if tail:
+            g += [ge * eps * (1.0 - eps), gc * (c - TAIL_MIN)]
+        return value, np.array(g)
+
     x0 = [math.log(k0)] + ([math.log(k0)] if split else []) + ([special.logit(0.05), math.log(20.0)] if tail else [])
     best = None
     starts = [np.array(x0)]
@@ -161,7 +213,8 @@ def fit(q: np.ndarray, dof: np.ndarray | int, share: np.ndarray | None = None, c
     for s in starts:
         # converged far below the figures' last printed digit: a replay on another processor, whose
         # arithmetic moves the data in their last bits, then finds the same optimum to 1e-9
-        r = optimize.minimize(f, s, method="L-BFGS-B", options={"ftol": 1e-15, "gtol": 1e-9, "maxiter": 500},
+        r = optimize.minimize(f_and_grad, s, jac=True, method="L-BFGS-B",
+                              options={"ftol": 1e-15, "gtol": 1e-9, "maxiter": 500},
                               bounds=[(-30, 30)] * (2 if split else 1) + ([(-12, 0.0), (-8, 14)] if tail else []))
         if best is None or r.fun < best.fun:
             best = r
@@ -169,13 +222,19 @@ def fit(q: np.ndarray, dof: np.ndarray | int, share: np.ndarray | None = None, c
     out = ScaleFit(k=float(np.mean(d.scale(a, b))), eps=float(eps), c=float(c),  # split: the mean factor
                    a=a if split else None, b=b if split else None, nll=float(best.fun), rows=d.rows)
     try:
-        cov = np.linalg.inv(_hessian(f, best.x))
+        H = _hessian(f, best.x)
         names = ["a", "b"] if split else ["k"]
+        try:
+            var = np.diag(np.linalg.inv(H))
+        except np.linalg.LinAlgError:
+            var = np.full(len(H), -1.0)
         for i, name in enumerate(names):
-            sd = min(math.sqrt(max(cov[i, i], 0.0)), 50.0)  # (an unidentified factor's: any width says so)
+            if not var[i] > 0:  # a singular information (a factor at its bound: 0): its own curvature, the others held
+                var[i] = 1.0 / H[i, i] if H[i, i] > 0 else np.inf
+            sd = min(math.sqrt(var[i]), 50.0)  # (an unidentified factor's: any width says so)
             v = math.exp(best.x[i])
             out.intervals[name] = (v * math.exp(-1.96 * sd), v * math.exp(1.96 * sd))
-    except (np.linalg.LinAlgError, ValueError):
+    except ValueError:
         pass
     return out
 
