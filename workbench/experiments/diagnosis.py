@@ -313,10 +313,12 @@ def diagnose(ev: Evidence | None, names: Mapping[str, str] | None = None) -> dic
             said = basin + "; " + said
     narrow = [g for g, d in direction.items() if d > 0]
     wide = [g for g, d in direction.items() if d < 0]
-    out["core"] = {g: groups[g]["factor"] for g in narrow + wide}  # what the noise factors say beside a tail
+    # what the noise factors say beside a tail: each group's factor where it is out of tolerance, else None
+    # (every group keyed: a replay compares the same keys)
+    out["core"] = {g: groups[g]["factor"] if g in narrow + wide else None for g in groups}
     def outliers() -> dict:
         # the estimator is consistent where its gate took the tail out and its noise is right otherwise
-        handled = not out["core"] and beyond >= 0.5 * best.eps and basin is None
+        handled = not (narrow or wide) and beyond >= 0.5 * best.eps and basin is None
         return {"verdict": "outliers", "factor": None, "group": None, "consistent": handled,
                 "reason": f"outliers or heavy tails: {_pct(beyond)} left out, {_pct(best.eps)} in a tail "
                           f"{math.sqrt(best.c):.0f}x wider than the noise"
@@ -398,7 +400,7 @@ def line(d: Mapping | None) -> str:
         f = d["factor"] if v == "too narrow" else 1.0 / d["factor"]
         return f"{v} x{f:.1f} ({d['group']})"
     if v == "outliers":
-        core = ", ".join(f"{g} x{f:.1f}" for g, f in (d.get("core") or {}).items())
+        core = ", ".join(f"{g} x{f:.1f}" for g, f in (d.get("core") or {}).items() if f is not None)
         return f"outliers {_pct(d.get('tail_share') or d['left_out'])}" + (f" ({core})" if core else "")
     if v == "left out":
         return f"left out {_pct(d['left_out'])}"

@@ -166,7 +166,9 @@ class Sensitive:
             parts.append(f"{held} within {SE_LIMIT:g} Monte Carlo standard errors (the largest {self.worst_se:.2g} "
                          "of one)")
         if self.unheld:
-            why = "one run" if not held else "a figure of the runs' figures"
+            texts = any(not (_number(n.stored) and _number(n.fresh)) for n in self.unheld)
+            why = ("texts and flags that follow its figures" if texts else
+                   "one run" if not held else "a figure of the runs' figures")
             parts.append(f"{len(self.unheld)} not reproducible across machines and not compared (no Monte Carlo "
                          f"error to hold {'them' if len(self.unheld) > 1 else 'it'} to: {why})")
         return head + ": " + "; ".join(parts)
@@ -286,7 +288,10 @@ def judge(stored: dict, fresh: dict, ignored: set[str], machine_differs: list[st
         for n in items:
             e = se.get(n.path)
             if not (_number(n.stored) and _number(n.fresh)):
-                over.append(n)  # a text or a count of another kind: nothing to hold it to
+                # a text, a flag or a figure come and gone (its diagnosis's reason, a factor's interval
+                # "not identified") of an estimator that amplifies its last bits: it follows the figures
+                # that moved, and has no error of its own to hold it to
+                unheld.append(n)
             elif e is None or not math.isfinite(e) or e <= 0.0:
                 unheld.append(n)  # (a zero error: every subset of the runs gave the same figure, no spread to go by)
             else:
