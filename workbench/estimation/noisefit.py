@@ -43,9 +43,10 @@ TAIL_MIN = 9.0
 """The heavy tail's variance is at least this times the core's (three times the sigma: what lies
 beyond three sigma is the outliers' usual reading; a narrower one is the core's own spread, as
 uneven leverage or a nonlinearity widens it, not a tail)."""
-MAX_ROWS = 20000
+MAX_ROWS = 5000
 """A fit reads at most this many rows (every n-th, in order): the factors' intervals are then a
-few per cent, far inside what a diagnosis reads, and a 1,000-run sweep's statistics stay fast."""
+few per cent (2 % on a sigma factor of one group), far inside the 25 % a diagnosis reads, and a
+1,000-run sweep's statistics stay fast."""
 
 
 @dataclass

@@ -25,14 +25,16 @@ PROBES = 64
 few units where a group's redundancy is thousands."""
 
 
-def hat_traces(graph, values, groups: list[str | None], probes: int = PROBES, seed: int = 0) -> dict[str, float]:
+def hat_traces(graph, values, groups: list[str | None], probes: int = PROBES, seed: int = 0,
+               dims: list[int] | None = None) -> dict[str, float]:
     """``tr(J_g (J' J)^-1 J_g')`` of each group of a GTSAM graph's factors at ``values``
-    (``groups``: each factor's group, None for one not judged, a prior); the group's redundancy
+    (``groups``: each factor's group, None for one not judged, a prior; ``dims``: each factor's
+    dimension where the caller knows them: asking each factor costs a call); the group's redundancy
     is its residuals' dimension less this. Empty where ``J' J`` is singular. (Not for a graph with
     a ``LinearContainerFactor``: GTSAM 4.3's Python ``dim()`` of one crashes the process.)"""
     lin = graph.linearize(values)
     T = lin.sparseJacobian_()
-    dims = np.array([graph.at(k).dim() for k in range(graph.size())], int)
+    dims = np.array(dims if dims is not None else [graph.at(k).dim() for k in range(graph.size())], int)
     rows, cols = int(dims.sum()), int(values.dim())
     keep = T[1] <= cols  # (the triplets' last column, cols + 1, is the right-hand side)
     J = sp.csr_matrix((T[2][keep], (T[0][keep].astype(int) - 1, T[1][keep].astype(int) - 1)), shape=(rows, cols))
