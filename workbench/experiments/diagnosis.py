@@ -354,7 +354,7 @@ def diagnose(ev: Evidence | None, names: Mapping[str, str] | None = None) -> dic
 
 
 GOF_ROWS = 5000
-"""The goodness-of-fit tests read at most this many rows (every n-th): their p-values are figures
+"""The goodness-of-fit tests read at most this many rows (drawn at random, seeded): their p-values are figures
 to read beside the verdict, which the likelihood decides."""
 
 
@@ -367,7 +367,9 @@ def goodness_of_fit(q: np.ndarray, dof: np.ndarray, k: float) -> dict:
     seen = np.isfinite(q)
     if not seen.any() or (~seen).any() or len(np.unique(dof[seen])) != 1:
         return {}
-    x = q[seen][:: max(1, int(math.ceil(seen.sum() / GOF_ROWS)))]
+    x = q[seen]
+    if len(x) > GOF_ROWS:  # drawn at random, seeded (every n-th would alias with the runs' steps)
+        x = x[np.sort(np.random.default_rng(0).choice(len(x), GOF_ROWS, replace=False))]
     m = float(dof[seen][0])
     return {"gof_p": float(sstats.cramervonmises(x, sstats.chi2(m).cdf).pvalue),
             "gof_scaled_p": float(sstats.cramervonmises(x / k, sstats.chi2(m).cdf).pvalue)}
