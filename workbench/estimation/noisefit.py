@@ -73,11 +73,6 @@ def _logpdf(q: np.ndarray, m: np.ndarray, s: np.ndarray) -> np.ndarray:
         - special.gammaln(0.5 * m) - np.log(s)
 
 
-def _logsf(g: np.ndarray, m: np.ndarray, s: np.ndarray) -> np.ndarray:
-    """log P(q > g) where ``q / s`` is chi-square with ``m`` degrees of freedom."""
-    return np.log(np.maximum(special.gammaincc(0.5 * m, 0.5 * g / s), 1e-300))
-
-
 class _Data:
     def __init__(self, q, dof, share, censored_at):
         q = np.asarray(q, float)
@@ -102,21 +97,8 @@ class _Data:
         return np.full(self.rows, a) if self.share is None else a * self.share + b * (1.0 - self.share)
 
     def nll(self, a: float, b: float, eps: float, c: float) -> float:
-        s = self.scale(a, b)
-        out = 0.0
-        for mask, f in ((self.seen, _logpdf), (~self.seen, _logsf)):
-            if not mask.any():
-                continue
-            x = self.q[mask] if f is _logpdf else self.g[mask]
-            core = f(x, self.m[mask], s[mask])
-            if eps > 0.0:
-                tail = f(x, self.m[mask], c * s[mask])
-                both = np.logaddexp(math.log1p(-eps) + core, math.log(eps) + tail)
-            else:
-                both = core
-            out -= float(np.sum(both))
-        return out
-
+        """The negative log-likelihood (:meth:`nll_grad`'s value)."""
+        return self.nll_grad(a, b, eps, c)[0]
 
     def nll_grad(self, a: float, b: float, eps: float, c: float) -> tuple[float, np.ndarray]:
         """:meth:`nll` and its gradient in ``(a, b, eps, c)`` (``b`` is ``a``'s where not split: its

@@ -48,6 +48,7 @@ from scipy import stats as sstats
 from workbench.estimation import noisefit
 from workbench.estimation.consistency import Innovations, Residuals
 from workbench.estimation.metrics import chi2_quantile
+from workbench.experiments.truthfree import WHITE_MAX
 
 MIN_ROWS = 30
 """Fewer measurements with a figure than this: not enough data to say."""
@@ -242,9 +243,6 @@ def diagnose(ev: Evidence | None, names: Mapping[str, str] | None = None) -> dic
     left = float(np.mean(~ev.kept)) if handed else 0.0
     expected = (1.0 - ev.gate) if ev.gate else 0.0
     out: dict[str, Any] = {"handed": handed, "left_out": left, "left_out_expected": expected, "rows": rows}
-    if ev.kind == "residuals":
-        bearing_rows = int((ev.kept & seen).sum())
-        rows = max(rows, bearing_rows)
     if rows < MIN_ROWS:
         return {"verdict": "not enough data", "factor": None, "group": None,
                 "reason": f"{rows} measurements with a figure (at least {MIN_ROWS} to say)", **out}
@@ -264,7 +262,6 @@ def diagnose(ev: Evidence | None, names: Mapping[str, str] | None = None) -> dic
     out["tail_share"] = best.eps if tailed else 0.0
     out["tail_width"] = math.sqrt(best.c) if tailed else None
     out["tail_p"] = p_tail
-    beyond = float(np.mean(~ev.kept))
     groups: dict[str, dict] = {}
     if best.a is not None:  # a filter: the state's share and the measurement noise's apart
         for key, v in (("state", best.a), ("measurement", best.b)):
@@ -318,9 +315,9 @@ def diagnose(ev: Evidence | None, names: Mapping[str, str] | None = None) -> dic
     out["core"] = {g: groups[g]["factor"] if g in narrow + wide else None for g in groups}
     def outliers() -> dict:
         # the estimator is consistent where its gate took the tail out and its noise is right otherwise
-        handled = not (narrow or wide) and beyond >= 0.5 * best.eps and basin is None
+        handled = not (narrow or wide) and left >= 0.5 * best.eps and basin is None
         return {"verdict": "outliers", "factor": None, "group": None, "consistent": handled,
-                "reason": f"outliers or heavy tails: {_pct(beyond)} left out, {_pct(best.eps)} in a tail "
+                "reason": f"outliers or heavy tails: {_pct(left)} left out, {_pct(best.eps)} in a tail "
                           f"{math.sqrt(best.c):.0f}x wider than the noise"
                           + (" (its gate took them out: consistent on the rest)" if handled else "") + "; " + said,
                 **out}
@@ -343,8 +340,6 @@ def diagnose(ev: Evidence | None, names: Mapping[str, str] | None = None) -> dic
     if excess:
         return {"verdict": "left out", "factor": None, "group": None,
                 "reason": "more left out than its model expects: " + said, **out}
-    from workbench.experiments.truthfree import WHITE_MAX
-
     if ev.whiteness and float(np.mean(ev.whiteness)) > WHITE_MAX:
         w = float(np.mean(ev.whiteness))
         return {"verdict": "correlated", "factor": None, "group": None,

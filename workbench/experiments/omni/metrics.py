@@ -22,8 +22,11 @@ from workbench.experiments.omni.estimate import SlamEstimate
 from workbench.experiments.omni.scenario import OmniData
 
 
-def _pose(data: OmniData, est: SlamEstimate, ctx: MetricContext) -> tuple[np.ndarray, np.ndarray]:
-    return ctx.shared(("pose", ctx.name), lambda: evaluate.on_grid(est, data.grid))
+def _pose(data: OmniData, est: SlamEstimate, ctx: MetricContext, name: str | None = None
+          ) -> tuple[np.ndarray, np.ndarray]:
+    """An estimate's pose and covariance on the grid, made once a run (``name``: whose, default the
+    metric's own estimator; the smoother's, for the metrics that compare with it)."""
+    return ctx.shared(("pose", name or ctx.name), lambda: evaluate.on_grid(est, data.grid))
 
 
 def _errors(data: OmniData, est: SlamEstimate, ctx: MetricContext) -> np.ndarray:
@@ -170,7 +173,7 @@ def disagreement(data: OmniData, est: SlamEstimate, ctx: MetricContext) -> Value
     if ref is None:
         return None
     pose, cov = _pose(data, est, ctx)
-    spose, scov = evaluate.on_grid(ctx.estimates[ref], data.grid)
+    spose, scov = _pose(data, ctx.estimates[ref], ctx, ref)
     return Values(consistency.disagreement(pose, cov, spose, scov, angles=(2,)), _t(data))
 
 
@@ -184,7 +187,7 @@ def smoother_gap(data: OmniData, est: SlamEstimate, ctx: MetricContext) -> Value
     if ref is None:
         return None
     pose, cov = _pose(data, est, ctx)
-    spose, scov = evaluate.on_grid(ctx.estimates[ref], data.grid)
+    spose, scov = _pose(data, ctx.estimates[ref], ctx, ref)
     return Values(consistency.disagreement(pose, cov, spose, -scov, angles=(2,)), _t(data))
 
 
@@ -194,7 +197,7 @@ def below_smoother(data: OmniData, est: SlamEstimate, ctx: MetricContext) -> Val
     ref = truthfree.reference(ctx)
     if ref is None:
         return None
-    scov = evaluate.on_grid(ctx.estimates[ref], data.grid)[1]
+    scov = _pose(data, ctx.estimates[ref], ctx, ref)[1]
     return Values(consistency.below(_pose(data, est, ctx)[1], scov), _t(data))
 
 
