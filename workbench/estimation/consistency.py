@@ -23,6 +23,7 @@ Applications to Tracking and Navigation*, Wiley 2001, sec. 5.4).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -41,7 +42,9 @@ class Innovations:
     m, m)``, the measurement noise part of each ``S`` (the rest is the state's predicted
     uncertainty, ``H P H'``: the two tell a too narrow motion noise from a too narrow measurement
     noise); ``gate``, the probability of the filter's chi-square gate (0.99: it expects to leave 1 %
-    of the measurements out), None without a gate."""
+    of the measurements out), None without a gate; ``outlier``, the outlier model the filter
+    assumed, ``(rate, density)``: a measurement is, with probability ``rate``, drawn from a flat
+    density ``density`` (``1 / (2 pi)`` for a bearing; a contaminated Gaussian), None without."""
 
     t: np.ndarray
     nu: np.ndarray
@@ -49,6 +52,7 @@ class Innovations:
     kept: np.ndarray | None = None
     R: np.ndarray | None = None
     gate: float | None = None
+    outlier: tuple[float, float] | None = None
 
     def __post_init__(self) -> None:
         self.t = np.asarray(self.t, float).ravel()
@@ -63,11 +67,12 @@ class Innovations:
 
     @classmethod
     def scalar(cls, t: np.ndarray, nu: np.ndarray, var: np.ndarray, kept: np.ndarray | None = None,
-               r: np.ndarray | None = None, gate: float | None = None) -> Innovations:
+               r: np.ndarray | None = None, gate: float | None = None,
+               outlier: tuple[float, float] | None = None) -> Innovations:
         """Scalar measurements (a bearing): innovations and their variances (``r``: the
         measurement noise's part of each)."""
         return cls(t, np.asarray(nu, float)[:, None], np.asarray(var, float)[:, None, None], kept,
-                   None if r is None else np.asarray(r, float)[:, None, None], gate)
+                   None if r is None else np.asarray(r, float)[:, None, None], gate, outlier)
 
     @property
     def dimension(self) -> int:
@@ -144,6 +149,24 @@ class Innovations:
         if ok.any():
             _, logdet = np.linalg.slogdet(self.S[ok])
             out[ok] = 0.5 * (self.dimension * np.log(2.0 * np.pi) + logdet + self.nis()[ok])
+        return out
+
+    def mixture_nll(self) -> np.ndarray:
+        """Each measurement's term of ``-log p(z)`` under the outlier model the filter assumed,
+        ``-log((1 - rate) N(nu; 0, S) + rate density)``, for every measurement with an innovation,
+        the ones the filter left out too: under a contaminated model a measurement left out is
+        still one the model explains, as an outlier, and is charged what the model says of it (no
+        gate can win the likelihood). :meth:`nll` without an outlier model."""
+        if not self.outlier or self.outlier[0] <= 0.0:
+            return self.nll()
+        rate, density = self.outlier
+        out = np.full(len(self.t), np.nan)
+        q = self.nis_all()
+        ok = np.isfinite(q)
+        if ok.any():
+            _, logdet = np.linalg.slogdet(self.S[ok])
+            core = np.log1p(-rate) - 0.5 * (self.dimension * np.log(2.0 * np.pi) + logdet + q[ok])
+            out[ok] = -np.logaddexp(core, math.log(rate * density))
         return out
 
     def charged_nll(self) -> np.ndarray:

@@ -76,6 +76,10 @@ class OmniConfig(Config):
     assume_sigma_gamma_deg: float | None = None   # the paper's bicycle: steering
     assume_sigma_w_deg: float | None = None       # a unicycle (MRCLAM, logs): yaw rate
     assume_sigma_bearing_deg: float | None = None
+    # factors on the noise the data state (a log's own covariances too), as sigmas: odometry, bearings
+    assume_odometry_scale: float | None = None
+    assume_bearing_scale: float | None = None
+    assume_outlier_rate: float | None = None     # a contaminated Gaussian's outlier share of the bearings
     # the landmark initialiser (1)-(5)
     skew_gate: float = 0.3
     min_parallax_deg: float = by_scenario(2.0)
@@ -158,7 +162,12 @@ class OmniConfig(Config):
         require(self.sigma_bearing_deg > 0.0, "--sigma-bearing must be positive (bearings need a noise model)")
         check_assumed(self, {"assume_sigma_v": "--assume-sigma-v", "assume_sigma_gamma_deg": "--assume-sigma-gamma",
                              "assume_sigma_w_deg": "--assume-sigma-w",
-                             "assume_sigma_bearing_deg": "--assume-sigma-bearing"})
+                             "assume_sigma_bearing_deg": "--assume-sigma-bearing",
+                             "assume_odometry_scale": "--assume-odometry-scale",
+                             "assume_bearing_scale": "--assume-bearing-scale",
+                             "assume_outlier_rate": "--assume-outlier-rate"})
+        require(self.assume_outlier_rate is None or self.assume_outlier_rate < 0.5,
+                f"--assume-outlier-rate must be below 0.5 (got {self.assume_outlier_rate})")
         for name in ("room", "speed", "duration", "dt", "wheelbase", "bearing_rate", "max_range",
                      "drop_after", "keyframe_every"):
             value = getattr(self, name)
@@ -227,6 +236,14 @@ OPTIONS: tuple[Option, ...] = (
            "the data's].", flag="--assume-sigma-w"),
     Option("assume_sigma_bearing_deg", "What the estimators assume of the bearing noise, deg, for every bearing "
            "[default: the data's].", flag="--assume-sigma-bearing"),
+    Option("assume_odometry_scale", "A factor on the odometry's noise the estimators assume, as a sigma: on "
+           "its sigmas and on each row's own covariance a log gives (increments), variances x its square "
+           "[default: 1]."),
+    Option("assume_bearing_scale", "A factor on the bearings' noise the estimators assume, as a sigma: on each "
+           "bearing's own sigma a log gives, or on --sigma-bearing [default: 1]."),
+    Option("assume_outlier_rate", "The share of bearings the EKF takes for outliers, uniform over the circle "
+           "(a contaminated Gaussian): it leaves out a bearing more likely an outlier than not (instead of "
+           "--nis-gate), and its likelihood is the mixture's [default: none]."),
     Option("skew_gate", "Initialise a landmark when |skewness| < this."),
     Option("min_parallax_deg", "... and its rays' parallax is at least this, deg.", flag="--min-parallax"),
     Option("drop_after", "Forget a pending landmark unseen this long, s."),

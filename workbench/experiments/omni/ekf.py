@@ -73,6 +73,7 @@ class BearingEkf:
         self.init_step = np.full(n_lm, -1)
         self.r = data.sigma_bearing**2
         self.gate = chi2_quantile(cfg.nis_gate, 1) if cfg.nis_gate > 0 else math.inf
+        self.outlier = min(float(getattr(cfg, "assume_outlier_rate", None) or 0.0), 0.5)
         self.linear = cfg.ekf_init == "linear"
         self.second_order = cfg.ekf_second_order
         self.failures = 0
@@ -81,6 +82,16 @@ class BearingEkf:
         # judged on (kept 0), for the truth-free diagnosis; NaN: none
         self.innovations: list[tuple[float, float, float, float, float]] = []
         self.attempts: list = []
+
+    def threshold(self, s: np.ndarray) -> np.ndarray:
+        """The NIS beyond which a bearing of innovation variance ``s`` is left out: the chi-square
+        gate's (``nis_gate``), or with an outlier model (``assume_outlier_rate`` ``e``, an outlier
+        uniform over the circle) where it is more likely an outlier than not,
+        ``(1 - e) N(nu; 0, s) < e / 2 pi``: ``nu^2 / s > 2 ln((1 - e) / e sqrt(2 pi / s))``
+        (the posterior's even odds; the gate then widens as the prediction sharpens)."""
+        if self.outlier > 0:
+            return 2.0 * np.log((1.0 - self.outlier) / self.outlier * np.sqrt(2.0 * np.pi / s))
+        return np.full(len(s), self.gate)
 
     # --- (7)-(8) ---------------------------------------------------------------------------
     def predict(self, controls: np.ndarray, dt: np.ndarray, control_var: np.ndarray | None = None
@@ -163,8 +174,8 @@ class BearingEkf:
             bias, extra = self._second_order(self.x, off)
             nu = wrap(nu - bias)
             S = S + np.diag(extra)
-        if math.isfinite(self.gate):
-            keep = nu**2 / np.diag(S) <= self.gate
+        if math.isfinite(self.gate) or self.outlier > 0:
+            keep = nu**2 / np.diag(S) <= self.threshold(np.diag(S))
             if not keep.all():
                 self.gated.extend(int(i) for i in index[~keep])
                 self.innovations.extend((t, float(v), float(s), float(q), 0.0)
@@ -376,7 +387,9 @@ def run(data: OmniData, cfg: OmniConfig, augmentation: str, name: str, trace: bo
     return SlamEstimate(name, np.arange(K + 1), poses, covs, map_steps, map_mean, map_cov,
                         f.first_seen, f.init_step, failures=f.failures, gated_bearings=np.array(f.gated, int),
                         attempts=f.attempts, innovations=Innovations.scalar(*innov[:, :3].T, kept=innov[:, 4] > 0,
-                                                                       r=innov[:, 3], gate=cfg.nis_gate or None))
+                                                                       r=innov[:, 3], gate=cfg.nis_gate or None,
+                                                                       outlier=(f.outlier, 1.0 / (2.0 * math.pi))
+                                                                       if f.outlier > 0 else None))
 
 
 def odometry(data: OmniData, name: str = "odometry") -> SlamEstimate:

@@ -47,14 +47,18 @@ models that have it, its control's index and the unit's conversion (the bearings
 def assumes(cfg: OmniConfig) -> bool:
     """Whether the estimators are told another noise than the data's (their products, the graph's
     keyframes, then carry it: what is the data's own, the bounds, is made apart)."""
-    return any(getattr(cfg, f) is not None for f in (*ASSUMED, "assume_sigma_bearing_deg"))
+    return any(getattr(cfg, f) is not None for f in (*ASSUMED, "assume_sigma_bearing_deg", "assume_odometry_scale",
+                                                      "assume_bearing_scale", "assume_outlier_rate"))
 
 
 def assumed(data: OmniData, cfg: OmniConfig) -> OmniData:
     """The dataset as the estimators see it (:meth:`.contract.Experiment.assumed`): the odometry's
     speed and steering (bicycle) or yaw-rate (unicycle) noise and the bearings' (each bearing's,
     where a log gave its own) where the config sets what they assume (``--assume-sigma-*``), the
-    data's own elsewhere. A one-line error for a setting the data's motion model has not."""
+    data's own elsewhere; then the factors on what is stated (``--assume-odometry-scale``,
+    ``--assume-bearing-scale``, as sigmas): on the odometry's sigmas and each row's own covariance
+    (increments, held controls' variances), on each bearing's own sigma or the one. A one-line
+    error for a setting the data's motion model has not."""
     sigma_u, changes = list(data.motion.sigma_u), {}
     for name, (flag, models, index, convert) in ASSUMED.items():
         value = getattr(cfg, name)
@@ -66,21 +70,64 @@ def assumed(data: OmniData, cfg: OmniConfig) -> OmniData:
         changes["motion"] = dataclasses.replace(data.motion, sigma_u=tuple(sigma_u))
     if cfg.assume_sigma_bearing_deg is not None:
         changes.update(sigma_bearing=math.radians(cfg.assume_sigma_bearing_deg), meas_sigma=None)
+    if cfg.assume_odometry_scale is not None:  # every odometry noise as a sigma: variances x its square
+        k = float(cfg.assume_odometry_scale)
+        motion = changes.get("motion", data.motion)
+        changes["motion"] = dataclasses.replace(motion, sigma_u=tuple(k * s for s in motion.sigma_u),
+                                                sigma_q=tuple(k * s for s in motion.sigma_q))
+        if data.control_var is not None:
+            changes["control_var"] = k * k * np.asarray(data.control_var, float)
+    if cfg.assume_bearing_scale is not None:
+        k = float(cfg.assume_bearing_scale)
+        sigma = changes.get("sigma_bearing", data.sigma_bearing)
+        own = changes.get("meas_sigma", data.meas_sigma)
+        changes.update(sigma_bearing=k * sigma, meas_sigma=None if own is None else k * np.asarray(own, float))
     return dataclasses.replace(data, **changes) if changes else data
+
+
+OUTLIER_START = 0.02
+"""The outlier share ``--tune-noise`` starts from on a real log (its search runs on the share's
+logarithm: a factor of 30 either way reaches 0.07 % and the 50 % cap)."""
 
 
 def tunable(data: OmniData, cfg: OmniConfig) -> tuple[str, dict[str, float], dict[str, str]]:
     """What ``--tune-noise`` tunes (:mod:`workbench.tuning.selftune`): by the EKF's likelihood of the
-    bearings, the odometry's two noises (speed and steering, or speed and yaw rate) and the
-    bearings', from the data's own values (config units); and what it leaves, with why."""
-    second = "sigma_gamma_deg" if data.motion.model == "bicycle" else "sigma_w_deg"
-    values = {"sigma_v": float(data.motion.sigma_u[0]), second: math.degrees(data.motion.sigma_u[1])}
-    left = {}
+    bearings, the odometry's noise and the bearings', from the data's own values (config units);
+    and what it leaves, with why. Where the data state a noise per row (increments' covariances, a
+    log's sigma per bearing) a factor on what they state is tuned (``odometry_scale``,
+    ``bearing_scale``, from 1): the rows' relative sizes are the log's to say, their scale the
+    data's. Elsewhere the sigmas themselves: speed and steering (bicycle) or yaw rate (unicycle).
+    On a real log (``mrclam``, ``log``) the bearings' outlier share too (``outlier_rate``, the
+    EKF's contaminated Gaussian, ``--assume-outlier-rate``): heavy tails are then fitted as tails,
+    not inflated into the odometry's noise."""
+    values: dict[str, float] = {}
+    left: dict[str, str] = {}
+    if data.motion.model == "increments":
+        values["odometry_scale"] = 1.0
+    else:
+        second = "sigma_gamma_deg" if data.motion.model == "bicycle" else "sigma_w_deg"
+        values.update(sigma_v=float(data.motion.sigma_u[0]), **{second: math.degrees(data.motion.sigma_u[1])})
     if data.meas_sigma is not None:
-        left["sigma_bearing_deg"] = "the log gives each bearing its own sigma: one tuned value would replace them"
+        values["bearing_scale"] = 1.0
     else:
         values["sigma_bearing_deg"] = math.degrees(data.sigma_bearing)
+    if cfg.scenario in ("mrclam", "log") or cfg.assume_outlier_rate is not None:
+        values["outlier_rate"] = OUTLIER_START  # a real log's bearings: misreads, reflections (heavy tails)
+    else:
+        left["outlier_rate"] = "a simulation's bearings are Gaussian: no outlier model (--assume-outlier-rate adds one)"
     return "ekf", values, left
+
+
+ODOMETRY = ("odometry_scale", "sigma_v", "sigma_gamma_deg", "sigma_w_deg")
+BEARING = ("bearing_scale", "sigma_bearing_deg")
+
+
+def components(data: OmniData, cfg: OmniConfig, values: dict[str, float]) -> tuple[str, dict[str, list[str]]]:
+    """The smoother whose residuals' variance components check ``--tune-noise``'s values
+    (:func:`workbench.tuning.selftune.vce`), and which tuned values scale each of its residual
+    groups' noise (:mod:`.residuals`: the odometry between keyframes, the bearings)."""
+    return "gtsam-batch", {"odometry": [k for k in values if k in ODOMETRY],
+                           "bearing": [k for k in values if k in BEARING]}
 
 
 def make_data(cfg: OmniConfig, run: int) -> OmniData:
