@@ -15,7 +15,6 @@ The load average is printed: on a shared machine the seconds swing with it.
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import json
 import os
 import tempfile
@@ -35,7 +34,8 @@ def rmse(cfg_changes: dict, data: Path, robot: int) -> dict[str, float]:
 
 def main() -> None:
     ap = argparse.ArgumentParser()
-    ap.add_argument("--data", type=Path, default=Path(__file__).resolve().parents[1] / ".." / "shared" / "data" / "mrclam6")
+    root = Path(__file__).resolve().parents[1]
+    ap.add_argument("--data", type=Path, default=root / ".." / "shared" / "data" / "mrclam6")
     ap.add_argument("--robots", default="1,2,3,4,5")
     ap.add_argument("--out", type=Path, default=None, help="write the rows as JSON here")
     args = ap.parse_args()

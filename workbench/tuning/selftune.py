@@ -221,21 +221,28 @@ def hessian(f: Any, x: np.ndarray, h: float = H_STEP) -> np.ndarray:
 
 def intervals(H: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Each value's 95 % interval ``(n, 2)`` from the Hessian ``H`` of the NLL in the log-values at
-    ``x``, and whether it is identified (a finite interval spanning at most :data:`SPAN`)."""
+    ``x``, and whether it is identified (a finite interval spanning at most :data:`SPAN`). A value
+    whose row of ``H`` is not finite (the filter failed a step away) or which moves along a
+    direction without curvature has no interval and is not identified; the others' come from the
+    rest of ``H``."""
     n = len(x)
     out = np.full((n, 2), np.nan)
     ok = np.zeros(n, bool)
-    if not np.isfinite(H).all():
+    rows = np.isfinite(H).all(axis=1) & np.isfinite(H).all(axis=0)
+    if not rows.any():
         return out, ok
-    w, V = np.linalg.eigh(0.5 * (H + H.T))
+    sub = 0.5 * (H[np.ix_(rows, rows)] + H[np.ix_(rows, rows)].T)
+    w, V = np.linalg.eigh(sub)
     # a direction without curvature leaves every value it moves unidentified
     flat = w <= 1e-9 * max(abs(w).max(), 1e-300)
     cov = (V[:, ~flat] / w[~flat]) @ V[:, ~flat].T
-    moved = np.abs(V[:, flat]).max(axis=1) > 1e-3 if flat.any() else np.zeros(n, bool)
+    moved = np.abs(V[:, flat]).max(axis=1) > 1e-3 if flat.any() else np.zeros(len(sub), bool)
     sd = np.sqrt(np.clip(np.diag(cov), 0.0, None))
-    out[:, 0], out[:, 1] = np.exp(x - Z95 * sd), np.exp(x + Z95 * sd)
-    out[moved] = np.nan
-    ok = ~moved & (np.exp(2 * Z95 * sd) <= SPAN)
+    idx = np.flatnonzero(rows)
+    xs = x[idx]
+    out[idx, 0], out[idx, 1] = np.exp(xs - Z95 * sd), np.exp(xs + Z95 * sd)
+    out[idx[moved]] = np.nan
+    ok[idx] = ~moved & (np.exp(2 * Z95 * sd) <= SPAN)
     return out, ok
 
 
@@ -374,7 +381,7 @@ def vce(exp: Any, data: Any, cfg: Any, smoother: str, groups: dict[str, list[str
             settled &= abs(f - 1.0) <= VCE_SETTLED
         if settled:
             break
-    out_values, interval, disagree = {}, {}, []
+    out_values, interval, disagree, compared = {}, {}, [], []
     for g, ks in groups.items():
         for k in ks:
             if g not in band:
@@ -383,11 +390,14 @@ def vce(exp: Any, data: Any, cfg: Any, smoother: str, groups: dict[str, list[str
             lo, hi = (values[k] * math.sqrt(b) for b in band[g])
             interval[k] = [lo, hi]
             flo, fhi = bounds[names.index(k)]
-            if math.isfinite(flo) and math.isfinite(fhi) and (hi < flo or lo > fhi):
-                disagree.append(k)
+            if math.isfinite(flo) and math.isfinite(fhi):
+                compared.append(k)
+                if hi < flo or lo > fhi:
+                    disagree.append(k)
     return {"smoother": smoother, "values": out_values, "interval": interval,
             "factor": {g: total[g] for g in band}, "runs": runs, "settled": bool(settled),
-            "seconds": time.perf_counter() - t0, "disagree": disagree}
+            "seconds": time.perf_counter() - t0, "disagree": disagree,
+            "compared": compared}
 
 
 def _band(lo: float, hi: float) -> str:
@@ -407,17 +417,20 @@ def lines(report: dict) -> list[str]:
     held = report.get("held_out")
     if held and held["measurements"]:
         first = report["first_part"]
-        better = held["nll_tuned"] < held["nll_start"]
+        verdict = ("the tuned noise generalises" if held["nll_tuned"] < held["nll_start"]
+                   else "NOT better: the tuned noise does not generalise")
         out.append(f"cross-validated: tuned on the first {first['measurements']} measurements, the other "
                    f"{held['measurements']}'s predictive NLL {held['nll_start']:.1f} at the start -> "
-                   f"{held['nll_tuned']:.1f} tuned ({'the tuned noise generalises' if better else 'NOT better: the tuned noise does not generalise'})")
+                   f"{held['nll_tuned']:.1f} tuned ({verdict})")
     sm = report.get("smoother")
     if sm and sm.get("values"):
-        said = "; ".join(f"{k.replace('_', '-')} {v:.4g} ({_band(*sm['interval'][k])})" for k, v in sm["values"].items())
+        said = "; ".join(f"{k.replace('_', '-')} {v:.4g} ({_band(*sm['interval'][k])})"
+                         for k, v in sm["values"].items())
         out.append(f"{sm['smoother']}'s own evidence (variance components of its residuals, {sm['runs']} runs"
                    f"{'' if sm['settled'] else ', not settled'}): {said}"
                    + (f"; DISAGREES with the filter's on {', '.join(k.replace('_', '-') for k in sm['disagree'])}"
-                      if sm["disagree"] else "; agrees with the filter's within their intervals"))
+                      if sm["disagree"] else "; agrees with the filter's within their intervals"
+                      if sm.get("compared") else "; the filter's values have no interval to compare with"))
     elif sm:
         out.append(f"{sm['smoother']}'s own evidence: none ({sm['failed']})")
     out += [f"not tuned: {k.replace('_', '-')}: {why}" for k, why in report["left"].items()]
