@@ -46,6 +46,7 @@ from collections.abc import Callable
 
 import numpy as np
 
+from workbench.estimation import outliers
 from workbench.estimation.angles import wrap
 from workbench.estimation.consistency import Innovations
 from workbench.estimation.metrics import chi2_quantile
@@ -85,13 +86,11 @@ class BearingEkf:
 
     def threshold(self, s: np.ndarray) -> np.ndarray:
         """The NIS beyond which a bearing of innovation variance ``s`` is left out: the chi-square
-        gate's (``nis_gate``), or with an outlier model (``assume_outlier_rate`` ``e``, an outlier
-        uniform over the circle) where it is more likely an outlier than not,
-        ``(1 - e) N(nu; 0, s) < e / 2 pi``: ``nu^2 / s > 2 ln((1 - e) / e sqrt(2 pi / s))``
-        (the posterior's even odds; the gate then widens as the prediction sharpens)."""
-        if self.outlier > 0:
-            return 2.0 * np.log((1.0 - self.outlier) / self.outlier * np.sqrt(2.0 * np.pi / s))
-        return np.full(len(s), self.gate)
+        gate's (``nis_gate``), or with an outlier model (``assume_outlier_rate``, an outlier
+        uniform over the circle) where it is more likely an outlier than not
+        (:func:`workbench.estimation.outliers.even_odds`: the gate then widens in sigmas as the
+        prediction sharpens)."""
+        return outliers.gate(s, self.outlier, self.gate)
 
     # --- (7)-(8) ---------------------------------------------------------------------------
     def predict(self, controls: np.ndarray, dt: np.ndarray, control_var: np.ndarray | None = None

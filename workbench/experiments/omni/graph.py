@@ -33,6 +33,7 @@ import gtsam
 import numpy as np
 from gtsam.symbol_shorthand import L, X
 
+from workbench.estimation import outliers
 from workbench.estimation.angles import wrap
 from workbench.estimation.metrics import chi2_quantile
 from workbench.experiments.omni import residuals
@@ -358,6 +359,9 @@ class _Incremental:
         # the bearing gate (``nis_gate`` > 0): the chain's pose covariance (world frame) since
         # the last LM pass, each landmark's marginal at that pass, the bearings left out
         self.gate = chi2_quantile(cfg.nis_gate, 1) if cfg.nis_gate > 0.0 else math.inf
+        self.outlier = outlier_rate(cfg)
+        if self.outlier > 0.0:  # the outlier model's gate instead (:func:`gate_nis`); finite: gating on
+            self.gate = float(gate_nis(cfg, data.sigma_bearing ** 2))
         self.chain_cov = np.asarray(data.start_cov, float).copy()
         self.point_cov: dict[int, np.ndarray] = {}
         self.rejected: set[tuple[int, int]] = set()
@@ -449,7 +453,8 @@ class _Incremental:
         (the held rays' poses, corrected by LM passes since, are no less certain)."""
         if not math.isfinite(self.gate):
             return math.inf
-        return math.sqrt(self.gate * (self.data.sigma_bearing ** 2 + self.chain_cov[2, 2]))
+        s = self.data.sigma_bearing ** 2 + self.chain_cov[2, 2]
+        return math.sqrt(max(float(gate_nis(self.cfg, s)), 0.0) * s)
 
     def _consistent(self, lm: int, bearing: float, sigma: float | None = None) -> bool:
         """The chi-square gate on a bearing of a landmark in the graph (``nis_gate``, the same
@@ -464,7 +469,7 @@ class _Incremental:
             return True
         r2, s = _bearing_test(_pose(self.chain), self.chain_cov, self.points[lm], self.point_cov.get(lm),
                               bearing, self.data.sigma_bearing if sigma is None else sigma)
-        return r2 <= self.gate * s
+        return r2 <= gate_nis(self.cfg, s) * s
 
     def _marginals(self, result: gtsam.Values, e: int) -> None:
         """The newest pose's and the landmarks' marginals at an LM pass's answer (the gate's
@@ -617,7 +622,7 @@ def batch(data: OmniData, cfg: OmniConfig, kf: Keyframes | None = None,
     result, marks, rejected, first_seen, init_step = solved[won]
     graph = _batch_graph(data, kf, marks, rejected)
     covs, lm_cov = _batch_marginals(graph, result, E, marks.inserted)
-    for _ in range(REGATE_ROUNDS if cfg.nis_gate > 0.0 else 0):
+    for _ in range(REGATE_ROUNDS if cfg.nis_gate > 0.0 or outlier_rate(cfg) > 0.0 else 0):
         again = _regate(data, cfg, kf, result, covs, lm_cov, marks.inserted)
         if again == rejected:
             break
@@ -736,30 +741,45 @@ def _solve(data: OmniData, cfg: OmniConfig, kf: Keyframes, start: Start):
     return result, marks, set(start.rejected), first_seen, init_step
 
 
+def outlier_rate(cfg: OmniConfig) -> float:
+    """The bearings' outlier share the estimators assume (``assume_outlier_rate``; 0: none)."""
+    return min(float(getattr(cfg, "assume_outlier_rate", None) or 0.0), 0.5)
+
+
+def gate_nis(cfg: OmniConfig, s: np.ndarray | float) -> np.ndarray | float:
+    """The normalised squared bearing residual beyond which the graphs leave a bearing of
+    variance ``s`` out: the outlier model's even odds (:func:`workbench.estimation.outliers.even_odds`)
+    where the config assumes one, else the chi-square gate ``nis_gate`` (inf where it is off)."""
+    out = outliers.gate(s, outlier_rate(cfg), chi2_quantile(cfg.nis_gate, 1) if cfg.nis_gate > 0.0 else math.inf)
+    return float(out) if np.ndim(out) == 0 else out
+
+
 def robust_cost(data: OmniData, cfg: OmniConfig, kf: Keyframes, result: gtsam.Values, inserted: np.ndarray
                 ) -> float:
     """The data's cost under a solution, the same for every start whatever it left out: the prior's
     and the odometry factors' errors (half their squared Mahalanobis norms) plus, for every bearing
     at a keyframe, half its squared normalised residual truncated at the gate's chi-square
-    quantile (``nis_gate``, 0.99 where the gate is off), a bearing of a landmark not in the map
+    quantile (``nis_gate``, 0.99 where the gate is off; with an outlier model its even odds,
+    :func:`gate_nis`, where the truncated cost is the mixture's likelihood's), a bearing of a landmark not in the map
     counting as one at the gate. Truncated least squares (Yang, Antonante, Tzoumas, Carlone,
     "Graduated non-convexity for robust spatial perception", RA-L 2020, eq. 3): a solution cannot
     lower its cost by leaving bearings out, each one out costs as much as the worst one kept, so
     a wrong basin that gates thousands of bearings out costs more than the right one."""
-    gate = chi2_quantile(cfg.nis_gate if cfg.nis_gate > 0.0 else 0.99, 1)
     cost = _odometry_graph(data, kf).error(result)
     e = np.concatenate([np.full(len(lms), k) for k, (lms, _) in enumerate(kf.bearings)]).astype(int)
     lm = np.concatenate([lms for lms, _ in kf.bearings]).astype(int)
     b = np.concatenate([bs for _, bs in kf.bearings])
     sigma = np.concatenate(kf.sigmas) if kf.sigmas is not None else np.full(len(b), data.sigma_bearing)
+    gate = (gate_nis(cfg, sigma ** 2) if outlier_rate(cfg) > 0.0
+            else np.full(len(b), chi2_quantile(cfg.nis_gate if cfg.nis_gate > 0.0 else 0.99, 1)))
     mapped = inserted[lm]
-    r2 = np.full(len(lm), gate)  # a bearing of a landmark not in the map counts at the gate
+    r2 = gate.copy()  # a bearing of a landmark not in the map counts at the gate
     if mapped.any():
         pose = np.array([_pose(result.atPose2(X(k))) for k in range(len(kf.steps))])[e[mapped]]
         points = {k: result.atPoint2(L(k)) for k in np.unique(lm[mapped]).tolist()}
         d = np.array([points[k] for k in lm[mapped].tolist()]) - pose[:, :2]
         r = wrap(b[mapped] - (np.arctan2(d[:, 1], d[:, 0]) - pose[:, 2]))
-        r2[mapped] = np.minimum(r * r / sigma[mapped] ** 2, gate)
+        r2[mapped] = np.minimum(r * r / sigma[mapped] ** 2, gate[mapped])
     return float(cost + 0.5 * r2.sum())
 
 
@@ -831,7 +851,6 @@ def _regate(data: OmniData, cfg: OmniConfig, kf: Keyframes, result: gtsam.Values
     the landmark's marginals, their correlation ignored, plus the bearing's own). The grown
     graph gated causally, against a prediction; a bearing it left out while its prediction was
     off comes back here, and one it took in that the whole run disagrees with goes."""
-    gate = chi2_quantile(cfg.nis_gate, 1)
     out = set()
     for e in range(len(kf.steps)):
         lms, bearings = kf.bearings[e]
@@ -843,7 +862,7 @@ def _regate(data: OmniData, cfg: OmniConfig, kf: Keyframes, result: gtsam.Values
             if not inserted[lm]:
                 continue
             r2, s = _bearing_test(pose, pose_cov, result.atPoint2(L(lm)), lm_cov[lm], b, sigma)
-            if r2 > gate * s:
+            if r2 > gate_nis(cfg, s) * s:
                 out.add((e, lm))
     return out
 
