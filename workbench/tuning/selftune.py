@@ -221,29 +221,33 @@ def hessian(f: Any, x: np.ndarray, h: float = H_STEP) -> np.ndarray:
 
 def intervals(H: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Each value's 95 % interval ``(n, 2)`` from the Hessian ``H`` of the NLL in the log-values at
-    ``x``, and whether it is identified (a finite interval spanning at most :data:`SPAN`). A value
-    whose row of ``H`` is not finite (the filter failed a step away) or which moves along a
-    direction without curvature has no interval and is not identified; the others' come from the
-    rest of ``H``."""
+    ``x``, and whether it is identified (an interval spanning at most :data:`SPAN`).
+
+    The values are dropped one at a time, each then held fixed (as a value not identified is:
+    kept at its start, the rest refined without it): first any whose row of ``H`` is not finite
+    (the filter failed a step away) or whose own curvature is not positive; then, while the rest
+    of ``H`` is not positive definite, the value that moves most along its least curved direction
+    (a likelihood that jumps as a filter's rows change can read a flat direction as a slightly
+    negative one); then, while one's interval spans more than :data:`SPAN`, the widest. The
+    intervals of the values kept are those of the rest of ``H`` (conditional on the dropped ones);
+    a dropped value's is the one it had when dropped (none where there was none)."""
     n = len(x)
     out = np.full((n, 2), np.nan)
-    ok = np.zeros(n, bool)
-    rows = np.isfinite(H).all(axis=1) & np.isfinite(H).all(axis=0)
-    if not rows.any():
-        return out, ok
-    sub = 0.5 * (H[np.ix_(rows, rows)] + H[np.ix_(rows, rows)].T)
-    w, V = np.linalg.eigh(sub)
-    # a direction without curvature leaves every value it moves unidentified
-    flat = w <= 1e-9 * max(abs(w).max(), 1e-300)
-    cov = (V[:, ~flat] / w[~flat]) @ V[:, ~flat].T
-    moved = np.abs(V[:, flat]).max(axis=1) > 1e-3 if flat.any() else np.zeros(len(sub), bool)
-    sd = np.sqrt(np.clip(np.diag(cov), 0.0, None))
-    idx = np.flatnonzero(rows)
-    xs = x[idx]
-    out[idx, 0], out[idx, 1] = np.exp(xs - Z95 * sd), np.exp(xs + Z95 * sd)
-    out[idx[moved]] = np.nan
-    ok[idx] = ~moved & (np.exp(2 * Z95 * sd) <= SPAN)
-    return out, ok
+    active = np.isfinite(H).all(axis=1) & np.isfinite(H).all(axis=0) & (np.diag(H) > 0)
+    while active.any():
+        idx = np.flatnonzero(active)
+        sub = 0.5 * (H[np.ix_(idx, idx)] + H[np.ix_(idx, idx)].T)
+        w, V = np.linalg.eigh(sub)
+        if w[0] <= 1e-9 * abs(w).max():
+            active[idx[int(np.argmax(np.abs(V[:, 0])))]] = False
+            continue
+        sd = np.sqrt(np.diag((V / w) @ V.T))
+        out[idx, 0], out[idx, 1] = np.exp(x[idx] - Z95 * sd), np.exp(x[idx] + Z95 * sd)
+        span = np.exp(2 * Z95 * sd)
+        if span.max() <= SPAN:
+            break
+        active[idx[int(np.argmax(span))]] = False
+    return out, active
 
 
 def tune_noise(exp: Any, cfg: Any, method: str | None = None) -> tuple[Any, dict]:
