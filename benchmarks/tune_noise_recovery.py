@@ -4,11 +4,13 @@ Simulations, each over ``--logs`` seeded logs, started from every noise assumed 
 the data's: sea's paper scenario (acceleration, azimuth, elevation), omni's paper bicycle over
 ``--omni-duration`` seconds (speed, steering, bearing) and an omni increments log
 (:mod:`workbench.experiments.omni.faults`: a car's drive with each step's covariance stated as it
-is; the factor on it, the bearing sigma and the outlier share, which a Gaussian log has none of).
+is; the factor on it, the bearing sigma and the outlier share, which a Gaussian log has none of)
+and the same drive's log as a unicycle's speed and yaw rate (their sigmas and the bearing's).
 Per parameter: the share of logs where it was identified, where identified within 25 % of what
 made the data, and where the 95 % interval covered it; the search's runs and seconds.
 
-Run: ``python benchmarks/tune_noise_recovery.py [--logs 20] [--cases sea,bicycle,increments]``.
+Run: ``python benchmarks/tune_noise_recovery.py [--logs 20] [--cases sea,bicycle,increments,unicycle]
+[--method nelder-mead|lbfgs]``.
 The load average is printed: on a shared machine the seconds swing with it.
 """
 
@@ -29,6 +31,7 @@ TRUTH = {
     "sea": {"sigma_acc": 0.1, "sigma_alpha_arcmin": 0.88, "sigma_beta_arcmin": 1.56},
     "bicycle": {"sigma_v": 0.1, "sigma_gamma_deg": 3.0, "sigma_bearing_deg": 1.0},
     "increments": {"odometry_scale": 1.0, "sigma_bearing_deg": 1.0},
+    "unicycle": {"sigma_v": 0.1, "sigma_w_deg": 2.0, "sigma_bearing_deg": 1.0},
 }
 
 
@@ -42,18 +45,20 @@ def config(case: str, seed: int, factor: float, tmp: Path, omni_duration: float)
         return exp, exp.validate(exp.configure(seed=seed, duration=omni_duration, **start))
     from workbench.experiments.omni import faults
 
-    folder = tmp / f"inc{seed}"
+    folder = tmp / f"{case}{seed}"
     if not folder.exists():
-        faults.write(folder, faults.Faults(poses=1500, landmarks=80, area=160.0, seed=seed))
+        faults.write(folder, faults.Faults(poses=1500, landmarks=80, area=160.0, seed=seed, odometry=case))
     return exp, exp.validate(exp.configure(scenario="log", data=folder, **start))
 
 
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--logs", type=int, default=20)
-    ap.add_argument("--cases", default="sea,bicycle,increments")
+    ap.add_argument("--cases", default="sea,bicycle,increments,unicycle")
     ap.add_argument("--omni-duration", type=float, default=120.0)
     ap.add_argument("--out", type=Path, default=None)
+    ap.add_argument("--method", choices=selftune.METHODS, default=selftune.METHOD,
+                    help="the joint search (the two measured against each other)")
     args = ap.parse_args()
     print(f"load average {os.getloadavg()[0]:.2f}")
     rows = []
@@ -65,7 +70,7 @@ def main() -> None:
                 for factor in (0.1, 10.0):
                     exp, cfg = config(case, seed, factor, Path(tmp), args.omni_duration)
                     t0 = time.perf_counter()
-                    _, rep = selftune.tune_noise(exp, cfg)
+                    _, rep = selftune.tune_noise(exp, cfg, method=args.method)
                     seconds += time.perf_counter() - t0
                     runs += rep["evaluations"]
                     n += 1

@@ -111,8 +111,8 @@ def test_intervals_from_the_hessian_and_what_is_not_identified():
     bounds, ok = selftune.intervals(np.diag([1 / sd**2, 1 / 0.5**2]), x)   # a factor exp(3.92 * 0.5) = 7
     assert ok.tolist() == [True, False] and bounds[1][1] / bounds[1][0] == pytest.approx(math.exp(2 * 1.959964 * 0.5))
     # the Hessian by central differences of a quadratic is exact
-    H = selftune.hessian(lambda z: 0.5 * (3 * z[0] ** 2 + 2 * z[0] * z[1] + 5 * z[1] ** 2), np.zeros(2))
-    assert np.allclose(H, [[3, 1], [1, 5]])
+    H, g = selftune.hessian(lambda z: 0.5 * (3 * z[0] ** 2 + 2 * z[0] * z[1] + 5 * z[1] ** 2) + z[0], np.zeros(2))
+    assert np.allclose(H, [[3, 1], [1, 5]]) and np.allclose(g, [1, 0])
 
 
 def test_a_scale_on_the_logs_own_covariances_reaches_every_row():

@@ -20,26 +20,28 @@ start, and the settings it leaves with why).
   passes a measurement or not, and a SLAM filter's rows change as it initialises a landmark
   sooner or later (jumps of about a unit of NLL), which finite-difference gradients read as
   slopes. The default, :data:`METHOD`, is the one measured right in fewer runs
-  (``benchmarks/tune_noise.py``).
+  (``benchmarks/tune_noise_recovery.py --method``).
 * **Cross-validated**: the values are tuned on the first :data:`FIT_SHARE` of the measurements (by
   time); the rest's predictive likelihood (the filter runs on through it: each term is that of a
   measurement not yet seen) is reported at the start values and the tuned ones. The values are
-  then refined on the whole log, from the first part's, and those are what the estimators assume.
-* **Identified**: the Hessian of the whole log's NLL in the log-values at the optimum (central
-  differences, a step of :data:`H_STEP`: wide, since a SLAM filter's objective jumps by about a
-  unit as its rows change with the noise, which a small step reads as curvature; at a factor 1.5 a
-  Gaussian's curvature in a log-sigma reads 5 % high, ``sinh(h)^2 / h^2``) is the observed Fisher
-  information; its inverse the
-  covariance of the log-values (Pawitan, *In All Likelihood*, 2001, sec. 2.7 and 3.3); each
-  value's 95 % interval is ``exp(x +- 1.96 sd)``. A value whose interval spans more than a factor
+  then moved to the whole log's optimum by one Newton step from the first part's (the Hessian's
+  runs give the gradient too; the step at most a factor 2.25), and those are what the estimators
+  assume.
+* **Identified**: the Hessian of the whole log's NLL in the log-values at the first part's
+  optimum (central differences, a step of :data:`H_STEP`: wide, since a SLAM filter's objective
+  jumps by about a unit as its rows change with the noise, which a small step reads as
+  curvature; at a factor 1.5 a Gaussian's curvature in a log-sigma reads 5 % high,
+  ``sinh(h)^2 / h^2``) is the observed Fisher information; its inverse the covariance of the
+  log-values (Pawitan, *In All Likelihood*, 2001, sec. 2.7 and 3.3); each value's 95 % interval
+  is ``exp(x +- 1.96 sd)`` (:func:`intervals`). A value whose interval spans more than a factor
   of :data:`SPAN` (or whose curvature is not positive) is *not identified by these data*: it is
   kept at its start (what the user or the data said) and the rest refined without it.
-
 * **The smoother's own evidence**: where the experiment names a smoother with residuals by group
   (its package's ``run.components``), variance component estimation (Förstner 1979; Koch,
   *Parameter Estimation and Hypothesis Testing in Linear Models*, sec. 3.6) from its answer at the
-  filter's values: each group's factor ``sum r2 / redundancy`` scales the group's noise, iterated
-  (:data:`VCE_ITERATIONS`) to a fixed point. VCE rather than EM in the smoother (Wong et al., RA-L
+  filter's values: each group's factor (``sum r2 / redundancy``; for the gated bearings a robust
+  one, :func:`component`) scales the group's noise, iterated (:data:`VCE_ITERATIONS`) to a fixed
+  point. VCE rather than EM in the smoother (Wong et al., RA-L
   2020): a batch GTSAM smoother is a least-squares adjustment whose redundancy per group is at hand
   (:mod:`workbench.estimation.redundancy`), each step is one smoother run, and it needs no
   marginal covariances of the whole trajectory, which EM's expectation step does. The filter's and
@@ -71,6 +73,7 @@ SPAN = 3.0             # a 95 % interval wider than this factor: not identified
 Z95 = 1.959964
 REACH = math.log(30.0)  # the coordinate sweeps reach a factor of 30 either way
 SWEEPS = 2
+SWEEP_XATOL = 0.1       # the sweeps stop at 10 %: the joint search refines
 VCE_ITERATIONS = 4      # smoother runs at most
 VCE_SETTLED = 0.05      # a group's factor within 5 % of one: the fixed point
 METHODS = ("nelder-mead", "lbfgs")
@@ -156,7 +159,7 @@ class _Objective:
 
 def _sweeps(f: Any, x0: np.ndarray, reach: float = REACH, sweeps: int = SWEEPS) -> np.ndarray:
     """Coordinate descent: each log-value in turn by a bounded Brent search within ``reach`` of
-    where it is (the others held), ``sweeps`` times or until none moves by 3 %. It crosses the
+    where it is (the others held), ``sweeps`` times or until none moves by 10 %. It crosses the
     factors of ten a start can be off by where a simplex crawls: far from its optimum a filter
     is told a noise it cannot live with (a bearing sigma ten times too small makes the EKF diverge)
     and a joint step finds no descent, while one noise at a time does."""
@@ -175,8 +178,8 @@ def _sweeps(f: Any, x0: np.ndarray, reach: float = REACH, sweeps: int = SWEEPS) 
             with np.errstate(invalid="ignore"), warnings.catch_warnings():
                 warnings.simplefilter("ignore", RuntimeWarning)   # an inf where the filter fails
                 res = minimize_scalar(g, bounds=(x[i] - reach, x[i] + reach), method="bounded",
-                                      options={"xatol": XATOL, "maxiter": 12})
-            if np.isfinite(res.fun) and res.fun < here and abs(res.x - x[i]) > XATOL:
+                                      options={"xatol": SWEEP_XATOL, "maxiter": 10})
+            if np.isfinite(res.fun) and res.fun < here and abs(res.x - x[i]) > SWEEP_XATOL:
                 x[i], moved = float(res.x), True
         if not moved:
             break
@@ -205,18 +208,22 @@ def _minimise_quiet(minimize: Any, f: Any, x0: np.ndarray, method: str, budget: 
     return np.asarray(res.x, float), float(res.fun), bool(res.success)
 
 
-def hessian(f: Any, x: np.ndarray, h: float = H_STEP) -> np.ndarray:
-    """Central differences of ``f`` at ``x``: ``2n`` runs for the diagonal, four per pair off it."""
+def hessian(f: Any, x: np.ndarray, h: float = H_STEP) -> tuple[np.ndarray, np.ndarray]:
+    """Central differences of ``f`` at ``x``, its Hessian and its gradient (the same runs): ``2n``
+    runs for the diagonal and the gradient, four per pair off it."""
     n = len(x)
     H = np.zeros((n, n))
+    g = np.zeros(n)
     f0 = f(x)
     e = np.eye(n) * h
     for i in range(n):
-        H[i, i] = (f(x + e[i]) - 2 * f0 + f(x - e[i])) / h ** 2
+        up, down = f(x + e[i]), f(x - e[i])
+        H[i, i] = (up - 2 * f0 + down) / h ** 2
+        g[i] = (up - down) / (2 * h)
         for j in range(i):
             H[i, j] = H[j, i] = (f(x + e[i] + e[j]) - f(x + e[i] - e[j]) - f(x - e[i] + e[j])
                                  + f(x - e[i] - e[j])) / (4 * h * h)
-    return H
+    return H, g
 
 
 def intervals(H: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -284,16 +291,24 @@ def tune_noise(exp: Any, cfg: Any, method: str | None = None) -> tuple[Any, dict
     x1, _, conv1 = _minimise(lambda x: obj.value(x, fit), xs, method, MAX_EVALUATIONS, STEP / 2)
     if obj.value(x1, fit) > obj.value(x0, fit):
         x1 = x0
-    # 2. the whole log, from there; its rows' count now the first part's answer's
+    # 2. the whole log at the first part's answer: its curvature, what the data identify, and a
+    # Newton step (within two of the Hessian's steps) to the whole log's optimum
     obj.ref = obj.run(x1) or first
-    x2, _, conv2 = _minimise(lambda x: obj.value(x, None), x1, method, MAX_EVALUATIONS // 2, STEP / 4)
-    if obj.value(x2, None) > obj.value(x1, None):
-        x2 = x1
-    # 3. what the data identify; the rest kept at its start and the others refined without it
-    H = hessian(lambda x: obj.value(x, None), x2)
-    bounds, identified = intervals(H, x2)
-    best = x2.copy()
-    if not identified.all():
+
+    def whole(x: np.ndarray) -> float:
+        return obj.value(x, None)
+
+    H, g = hessian(whole, x1)
+    bounds, identified = intervals(H, x1)
+    best = x1.copy()
+    conv2 = True
+    if identified.all():
+        step = -np.linalg.solve(0.5 * (H + H.T), g)
+        step *= min(1.0, 2 * H_STEP / max(float(np.abs(step).max()), 1e-300))
+        if whole(x1 + step) < whole(x1):
+            best = x1 + step
+            bounds = bounds * np.exp(step)[:, None]
+    else:  # 3. the rest kept at its start and the others refined without it
         best[~identified] = x0[~identified]
         free = np.flatnonzero(identified)
         if free.size:
@@ -302,8 +317,9 @@ def tune_noise(exp: Any, cfg: Any, method: str | None = None) -> tuple[Any, dict
                 x[free] = z
                 return obj.value(x, None)
 
-            z, _, _ = _minimise(sub, best[free], method, MAX_EVALUATIONS // 2, STEP / 4)
+            z, _, conv2 = _minimise(sub, best[free], method, MAX_EVALUATIONS // 2, STEP / 4)
             if sub(z) <= sub(best[free]):
+                bounds[free] *= np.exp(z - best[free])[:, None]   # the intervals move with their values
                 best[free] = z
     values = dict(zip(names, (float(v) for v in np.exp(best)), strict=True))
     components = exp._optional("run", "components")

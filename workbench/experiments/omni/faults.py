@@ -12,6 +12,9 @@ The faults, each a setting of :func:`write`:
 * ``blind``: seconds with no bearing, every ``blind_every`` seconds (a camera's dropout);
 * ``swap``: two landmark ids whose surveyed places are exchanged (a survey with swapped ids).
 
+``odometry = "unicycle"`` writes the same drive's odometry as speed and yaw rate per step instead
+(``SIGMA_V``, ``SIGMA_W`` white per step, the manifest's sigmas stated x ``odometry_stated``).
+
 What the diagnosis (:mod:`workbench.experiments.diagnosis`) must say of each is measured on them
 (``tests/test_diagnosis.py``, ``benchmarks/diagnosis_agreement.py``).
 """
@@ -27,6 +30,8 @@ import numpy as np
 from workbench.experiments import logfiles
 
 SIGMA_BEARING = math.radians(1.0)
+SIGMA_V = 0.1                    # m/s, a unicycle log's speed noise per step
+SIGMA_W = math.radians(2.0)      # rad/s, its yaw rate's
 
 
 @dataclass(frozen=True)
@@ -48,6 +53,7 @@ class Faults:
     blind_every: float = 200.0
     swap: tuple[int, int] | None = None
     seed: int = 0
+    odometry: str = "increments"   # or "unicycle"
 
 
 def simulate(f: Faults) -> dict:
@@ -73,6 +79,8 @@ def simulate(f: Faults) -> dict:
     sig = np.column_stack([0.02 * np.abs(inc[:, 0]) + 0.005, np.full(len(inc), 0.005),
                            np.full(len(inc), math.radians(0.3))])
     noisy = inc + rng.normal(size=inc.shape) * sig
+    rates = np.column_stack([np.full(len(inc), f.speed), np.diff(np.unwrap(poses[:, 2])) / f.dt])
+    rates = rates + rng.normal(size=rates.shape) * np.array([SIGMA_V, SIGMA_W])
     t_b, b, lm_of, true_lm = [], [], [], []
     blind = np.zeros(f.poses, bool)
     if f.blind > 0:
@@ -94,7 +102,7 @@ def simulate(f: Faults) -> dict:
             b.append((z + math.pi) % (2 * math.pi) - math.pi)
             lm_of.append(said)
             true_lm.append(j)
-    return {"poses": poses, "increments": noisy, "sigmas": sig, "landmarks": lms, "t_b": np.array(t_b),
+    return {"poses": poses, "increments": noisy, "sigmas": sig, "rates": rates, "landmarks": lms, "t_b": np.array(t_b),
             "bearings": np.array(b), "ids": np.array(lm_of, int), "true_ids": np.array(true_lm, int)}
 
 
@@ -110,15 +118,21 @@ def write(folder: Path, f: Faults = Faults(), force: bool = False) -> list[Path]
     if f.swap is not None:
         a, b = f.swap
         survey[[a, b]] = survey[[b, a]]
+    odometry = (("t_s", "dx_m", "dy_m", "dphi_rad", "var_dx_m2", "var_dy_m2", "var_dphi_rad2", "cov_dx_dy_m2",
+                 "cov_dx_dphi_mrad", "cov_dy_dphi_mrad"), rows)
+    motion = {"motion": "increments", "noise_per_second": False}
+    if f.odometry == "unicycle":
+        odometry = (("t_s", "v_mps", "w_radps"), np.column_stack([t, np.vstack([sim["rates"], np.zeros(2)])]))
+        motion = {"motion": "unicycle", "noise_per_second": False, "sigma_v_mps": SIGMA_V * f.odometry_stated,
+                  "sigma_w_radps": SIGMA_W * f.odometry_stated}
     files = {
-        "odometry.csv": (("t_s", "dx_m", "dy_m", "dphi_rad", "var_dx_m2", "var_dy_m2", "var_dphi_rad2", "cov_dx_dy_m2",
-                          "cov_dx_dphi_mrad", "cov_dy_dphi_mrad"), rows),
+        "odometry.csv": odometry,
         "bearings.csv": (("t_s", "bearing_rad", "landmark_id"), np.column_stack([sim["t_b"], sim["bearings"],
                                                                                sim["ids"]])),
         "truth.csv": (("t_s", "x_m", "y_m", "phi_rad"), np.column_stack([t, sim["poses"]])),
         "landmarks.csv": (("landmark_id", "x_m", "y_m"), np.column_stack([np.arange(f.landmarks), survey])),
     }
-    meta = {"format": 1, "experiment": "omni", "motion": "increments", "noise_per_second": False,
+    meta = {"format": 1, "experiment": "omni", **motion,
             "sigma_bearing_rad": SIGMA_BEARING * f.bearing_stated, "commands": "held",
             "start": sim["poses"][0].tolist(), "start_cov": (np.diag([0.01, 0.01, math.radians(0.5)]) ** 2).tolist(),
             "max_range_m": f.max_range, "label": f"synthetic drive with faults (seed {f.seed})"}
