@@ -26,7 +26,9 @@ start, and the settings it leaves with why).
   measurement not yet seen) is reported at the start values and the tuned ones. The values are
   then moved to the whole log's optimum by one Newton step from the first part's (the Hessian's
   runs give the gradient too; the step at most a factor 2.25), and those are what the estimators
-  assume.
+  assume, unless the held-out part's likelihood is no better at them than at the start: then
+  the start values are kept (measured on MRCLAM robot 3: a bearing sigma of 0.15 deg fitted the
+  first three quarters and doubled the rest's NLL).
 * **Identified**: the Hessian of the whole log's NLL in the log-values at the first part's
   optimum (central differences, a step of :data:`H_STEP`: wide, since a SLAM filter's objective
   jumps by about a unit as its rows change with the noise, which a small step reads as
@@ -325,18 +327,23 @@ def tune_noise(exp: Any, cfg: Any, method: str | None = None) -> tuple[Any, dict
             if sub(z) <= sub(best[free]):
                 bounds[free] *= np.exp(z - best[free])[:, None]   # the intervals move with their values
                 best[free] = z
+    # 4. what does not generalise is not told: the held-out part's predictive likelihood at the
+    # first part's values no better than at the start keeps the start
+    n_held = int(np.count_nonzero(first.t > split))
+    generalises = not n_held or obj.value(x1, held) < obj.value(x0, held)
+    if not generalises:
+        best = x0.copy()
     values = dict(zip(names, (float(v) for v in np.exp(best)), strict=True))
     components = exp._optional("run", "components")
     smoother = vce(exp, data, cfg, *components(data, cfg, values), values, bounds, names) if components else None
     n_fit = int(np.count_nonzero(first.t <= split))
-    n_held = int(np.count_nonzero(first.t > split))
     report = {"filter": filt, "method": method, "start": start, "tuned": values,
               "interval": {n: [float(a), float(b)] for n, (a, b) in zip(names, bounds, strict=True)},
               "identified": {n: bool(i) for n, i in zip(names, identified, strict=True)},
               "first_part": {"measurements": n_fit, "values": dict(zip(names, map(float, np.exp(x1)), strict=True)),
                              "nll_start": obj.value(x0, fit), "nll_tuned": obj.value(x1, fit)},
               "held_out": {"measurements": n_held, "nll_start": obj.value(x0, held) if n_held else math.nan,
-                           "nll_tuned": obj.value(x1, held) if n_held else math.nan},
+                           "nll_tuned": obj.value(x1, held) if n_held else math.nan, "generalises": generalises},
               "nll_start": obj.value(x0, None), "nll_tuned": obj.value(best, None),
               "evaluations": len(obj.cache), "seconds": time.perf_counter() - t0,
               "converged": bool(conv1 and conv2), "left": left, "smoother": smoother}
@@ -444,7 +451,7 @@ def lines(report: dict) -> list[str]:
     if held and held["measurements"]:
         first = report["first_part"]
         verdict = ("the tuned noise generalises" if held["nll_tuned"] < held["nll_start"]
-                   else "NOT better: the tuned noise does not generalise")
+                   else "NOT better: the tuned noise does not generalise, so the start values are kept")
         out.append(f"cross-validated: tuned on the first {first['measurements']} measurements, the other "
                    f"{held['measurements']}'s predictive NLL {held['nll_start']:.1f} at the start -> "
                    f"{held['nll_tuned']:.1f} tuned ({verdict})")
