@@ -54,6 +54,7 @@ def config(case: str, seed: int, factor: float, tmp: Path, omni_duration: float)
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--logs", type=int, default=20)
+    ap.add_argument("--first-seed", type=int, default=0, help="the logs' seeds from this (to split a run)")
     ap.add_argument("--cases", default="sea,bicycle,increments,unicycle")
     ap.add_argument("--omni-duration", type=float, default=120.0)
     ap.add_argument("--out", type=Path, default=None)
@@ -66,7 +67,7 @@ def main() -> None:
         for case in args.cases.split(","):
             tally: dict[str, dict[str, int]] = defaultdict(lambda: defaultdict(int))
             runs, seconds, n = 0, 0.0, 0
-            for seed in range(args.logs):
+            for seed in range(args.first_seed, args.first_seed + args.logs):
                 for factor in (0.1, 10.0):
                     exp, cfg = config(case, seed, factor, Path(tmp), args.omni_duration)
                     t0 = time.perf_counter()

@@ -331,8 +331,10 @@ def tune_noise(exp: Any, cfg: Any, method: str | None = None) -> tuple[Any, dict
     # first part's values no better than at the start keeps the start
     n_held = int(np.count_nonzero(first.t > split))
     generalises = not n_held or obj.value(x1, held) < obj.value(x0, held)
-    if not generalises:
+    if not generalises:   # nothing tuned stands: no value identified, no interval to compare with
         best = x0.copy()
+        bounds = np.full_like(bounds, np.nan)
+        identified = np.zeros_like(identified)
     values = dict(zip(names, (float(v) for v in np.exp(best)), strict=True))
     components = exp._optional("run", "components")
     smoother = vce(exp, data, cfg, *components(data, cfg, values), values, bounds, names) if components else None
@@ -442,7 +444,9 @@ def lines(report: dict) -> list[str]:
     said = []
     for k, v in report["tuned"].items():
         lo, hi = report.get("interval", {}).get(k, (math.nan, math.nan))
-        mark = "" if report.get("identified", {}).get(k, True) else ", not identified by these data: kept"
+        kept = not report.get("held_out", {}).get("generalises", True)
+        mark = ("" if report.get("identified", {}).get(k, True) or kept
+                else ", not identified by these data: kept")
         said.append(f"{k.replace('_', '-')} {report['start'][k]:.4g} -> {v:.4g} ({_band(lo, hi)}{mark})")
     out = [f"tuned noise (the likelihood of {report['filter']}'s innovations on run 0, {report['evaluations']} "
            f"evaluations, {report['seconds']:.1f} s{'' if report['converged'] else ', not converged'}): "
