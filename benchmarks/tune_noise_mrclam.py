@@ -54,7 +54,8 @@ def main() -> None:
         print(f"robot {robot}:")
         for line in selftune.lines(rep):
             print("  " + line)
-        filt = {f"assume_{k}": v for k, v in rep["tuned"].items()}
+        told = rep["held_out"]["generalises"]
+        filt = {f"assume_{k}": v for k, v in rep["tuned"].items()} if told else {}
         sm = rep.get("smoother") or {}
         smooth = {**filt, **{f"assume_{k}": v for k, v in sm.get("values", {}).items()}}
         scores = {"data's": rmse({}, args.data, robot), "filter's": rmse(filt, args.data, robot)}

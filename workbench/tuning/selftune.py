@@ -349,6 +349,8 @@ def tune_noise(exp: Any, cfg: Any, method: str | None = None) -> tuple[Any, dict
               "nll_start": obj.value(x0, None), "nll_tuned": obj.value(best, None),
               "evaluations": len(obj.cache), "seconds": time.perf_counter() - t0,
               "converged": bool(conv1 and conv2), "left": left, "smoother": smoother}
+    if not generalises:   # the config as it came: a search's start (the outlier share's) is not told either
+        return cfg, report
     return dataclasses.replace(cfg, **{f"assume_{k}": v for k, v in values.items()}), report
 
 
@@ -455,7 +457,7 @@ def lines(report: dict) -> list[str]:
     if held and held["measurements"]:
         first = report["first_part"]
         verdict = ("the tuned noise generalises" if held["nll_tuned"] < held["nll_start"]
-                   else "NOT better: the tuned noise does not generalise, so the start values are kept")
+                   else "NOT better: the tuned noise does not generalise, so nothing is told")
         out.append(f"cross-validated: tuned on the first {first['measurements']} measurements, the other "
                    f"{held['measurements']}'s predictive NLL {held['nll_start']:.1f} at the start -> "
                    f"{held['nll_tuned']:.1f} tuned ({verdict})")
