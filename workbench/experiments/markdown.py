@@ -154,6 +154,11 @@ def verdicts(stats: Mapping) -> list[str]:
             lines.append(f"- {name}: " + "; ".join(parts))
     if not lines:
         return []
+    wrong = [n for n, e in stats["estimators"].items()
+             if (e.get("diagnosis") or {}).get("verdict") in ("too narrow", "too wide", "outliers")]
+    if wrong and not stats.get("tuned_noise"):
+        lines.append(f"- the noise assumed does not fit the data for {', '.join(wrong)}: `--tune-noise` estimates it "
+                     "from the data (the EKF's likelihood, cross-validated, with intervals; README, Self-tuned runs)")
     return ["**Consistency**: the diagnosis without truth (every measurement handed counted, the ones left out "
             "too: docs/diagnosis.md), then each test at 95 %: without truth, the filters' innovations (NIS, "
             "whiteness) and each causal estimator against the smoother; with truth, the NEES", "", *lines, ""]
