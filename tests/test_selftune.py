@@ -167,3 +167,49 @@ def test_misread_bearings_are_fitted_as_outliers_not_as_odometry_noise(tmp_path)
     assert t["tuned"]["sigma_bearing_deg"] == pytest.approx(1.0, rel=0.25)
     assert t["held_out"]["nll_tuned"] < t["held_out"]["nll_start"]
     assert res.config.assume_outlier_rate == t["tuned"]["outlier_rate"]
+
+
+def test_the_smoothers_variance_components_robust_where_a_gate_judged():
+    """Förstner's ``sum r2 / redundancy`` for the odometry; for the bearings, of which a gate left
+    the outliers out, the core's factor of a scale mixture over them all: 2,000 bearings whose
+    noise is 1.5x (in sigma) what was assumed, 10 % of them outliers 30 sigma wide that the gate
+    dropped, redundancy 80 % of the rows."""
+    from workbench.estimation.consistency import Residuals
+    from workbench.tuning import selftune
+
+    rng = np.random.default_rng(3)
+    n_b, n_o = 2000, 600
+    core = 2.25 * rng.chisquare(1, n_b) * 0.8          # studentised back to 2.25 chi2_1 by the share
+    wild = rng.random(n_b) < 0.1
+    core[wild] = 900 * rng.chisquare(1, wild.sum()) * 0.8
+    odo = 0.5 * rng.chisquare(3, n_o) * 0.9
+    res = Residuals(np.array(["bearing"] * n_b + ["odometry"] * n_o), np.concatenate([core, odo]),
+                    np.array([1] * n_b + [3] * n_o), np.concatenate([~wild, np.ones(n_o, bool)]),
+                    {"bearing": 0.8 * (~wild).sum(), "odometry": 0.9 * 3 * n_o})
+    k, (lo, hi) = selftune.component(res, "bearing")
+    assert k == pytest.approx(2.25, rel=0.1) and lo < 2.25 < hi
+    k, (lo, hi) = selftune.component(res, "odometry")
+    assert k == pytest.approx(odo.sum() / (0.9 * 3 * n_o), rel=1e-9) and k == pytest.approx(0.5, rel=0.05)
+    # where no gate judged the bearings, Förstner's sum stands, the tail and all (~ 0.9 x 2.25 + 0.1 x 900)
+    import dataclasses
+
+    plain = selftune.component(dataclasses.replace(res, used=np.ones(n_b + n_o, bool),
+                                                   redundancy={"bearing": 0.8 * n_b, "odometry": 0.9 * 3 * n_o}),
+                               "bearing")[0]
+    assert plain == pytest.approx(0.9 * 2.25 + 0.1 * 900, rel=0.15)
+
+
+def test_the_graphs_gate_is_the_outlier_models_where_one_is_assumed():
+    from workbench.estimation import outliers
+    from workbench.estimation.metrics import chi2_quantile
+    from workbench.experiments import get
+    from workbench.experiments.omni import graph
+
+    exp = get("omni")
+    s = np.array([1e-4, 4e-4])
+    cfg = exp.validate(exp.configure(nis_gate=0.99))
+    assert np.allclose(graph.gate_nis(cfg, s), chi2_quantile(0.99, 1))
+    told = exp.validate(exp.configure(nis_gate=0.99, assume_outlier_rate=0.1))
+    assert np.allclose(graph.gate_nis(told, s), outliers.even_odds(s, 0.1))
+    assert np.allclose(outliers.even_odds(s, 0.1), 2 * np.log(0.9 / 0.1 * np.sqrt(2 * np.pi / s)))
+    assert graph.gate_nis(exp.validate(exp.configure(nis_gate=0.0)), 1e-4) == math.inf
