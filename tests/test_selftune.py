@@ -213,3 +213,19 @@ def test_the_graphs_gate_is_the_outlier_models_where_one_is_assumed():
     assert np.allclose(graph.gate_nis(told, s), outliers.even_odds(s, 0.1))
     assert np.allclose(outliers.even_odds(s, 0.1), 2 * np.log(0.9 / 0.1 * np.sqrt(2 * np.pi / s)))
     assert graph.gate_nis(exp.validate(exp.configure(nis_gate=0.0)), 1e-4) == math.inf
+
+
+def test_a_likelihood_that_jumps_is_not_read_as_curvature():
+    """A Gaussian's NLL in a log-sigma is smooth (its curvature at twice the step within 17 %); one
+    that jumps by units as a filter's rows change reads four times more curved at the step than at
+    twice it, and its value is not identified (the interval would be that much too narrow)."""
+    from workbench.tuning import selftune
+
+    n = 400
+    smooth = lambda y: n * (y[0] + 0.5 * np.exp(-2 * y[0])) + 0.1 * y[1] ** 2 + 5.0 * (abs(y[1]) > 0.3)  # noqa: E731
+    x = np.zeros(2)
+    H, _ = selftune.hessian(smooth, x)
+    assert H[0, 0] == pytest.approx(2 * n * np.sinh(selftune.H_STEP) ** 2 / selftune.H_STEP ** 2)
+    assert selftune.rough(smooth, x, H).tolist() == [False, True]
+    bounds, ok = selftune.intervals(H, x, drop=selftune.rough(smooth, x, H))
+    assert ok.tolist() == [True, False] and np.isnan(bounds[1]).all()
