@@ -175,7 +175,7 @@ def test_the_smoothers_variance_components_robust_where_a_gate_judged():
     noise is 1.5x (in sigma) what was assumed, 10 % of them outliers 30 sigma wide that the gate
     dropped, redundancy 80 % of the rows."""
     from workbench.estimation.consistency import Residuals
-    from workbench.tuning import selftune
+    from workbench.tuning import components as selftune
 
     rng = np.random.default_rng(3)
     n_b, n_o = 2000, 600

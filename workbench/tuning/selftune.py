@@ -74,7 +74,7 @@ from typing import Any
 import numpy as np
 
 from workbench.errors import WorkbenchError
-from workbench.tuning.components import component, vce  # noqa: F401  (the smoother's evidence)
+from workbench.tuning.components import vce
 
 MAX_EVALUATIONS = 60     # the joint search's budget on the first part (half that for each refinement)
 STEP = math.log(2.0)   # the first simplex: a factor of two about the start
@@ -129,12 +129,6 @@ def terms(exp: Any, data: Any, cfg: Any, filt: str, values: dict[str, float]) ->
         nll = innov.mixture_nll()
         return Terms(innov.t, nll, np.isfinite(nll))
     return Terms(innov.t, innov.nll(), innov.used & innov.valid)
-
-
-def nll(exp: Any, data: Any, cfg: Any, filt: str, values: dict[str, float]) -> float:
-    """The filter's charged NLL of ``data`` told ``values`` (config fields without ``assume_``)."""
-    got = terms(exp, data, cfg, filt, values)
-    return math.inf if got is None else got.charged()
 
 
 class _Objective:
@@ -202,20 +196,15 @@ def _minimise(f: Any, x0: np.ndarray, method: str, budget: int, step: float) -> 
     evaluations: its point, value and whether the search says it converged."""
     from scipy.optimize import minimize
 
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", RuntimeWarning)   # an inf where the filter fails
-        return _minimise_quiet(minimize, f, x0, method, budget, step)
-
-
-def _minimise_quiet(minimize: Any, f: Any, x0: np.ndarray, method: str, budget: int,
-                    step: float) -> tuple[np.ndarray, float, bool]:
     if method == "lbfgs":
-        res = minimize(f, x0, method="L-BFGS-B", options={"eps": 0.01, "maxfun": budget, "ftol": 1e-7,
-                                                          "gtol": 1e-3})
+        how = {"method": "L-BFGS-B", "options": {"eps": 0.01, "maxfun": budget, "ftol": 1e-7, "gtol": 1e-3}}
     else:
         simplex = np.vstack([x0, x0 + step * np.eye(len(x0))])
-        res = minimize(f, x0, method="Nelder-Mead", options={"initial_simplex": simplex, "xatol": XATOL,
-                                                            "fatol": 1e-3, "maxfev": budget})
+        how = {"method": "Nelder-Mead", "options": {"initial_simplex": simplex, "xatol": XATOL, "fatol": 1e-3,
+                                                    "maxfev": budget}}
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)   # an inf where the filter fails
+        res = minimize(f, x0, **how)
     return np.asarray(res.x, float), float(res.fun), bool(res.success)
 
 

@@ -74,7 +74,7 @@ class BearingEkf:
         self.init_step = np.full(n_lm, -1)
         self.r = data.sigma_bearing**2
         self.gate = chi2_quantile(cfg.nis_gate, 1) if cfg.nis_gate > 0 else math.inf
-        self.outlier = min(float(getattr(cfg, "assume_outlier_rate", None) or 0.0), 0.5)
+        self.outlier = float(cfg.assume_outlier_rate or 0.0)   # (the config holds it below 0.5)
         self.linear = cfg.ekf_init == "linear"
         self.second_order = cfg.ekf_second_order
         self.failures = 0

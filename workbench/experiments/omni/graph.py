@@ -27,6 +27,7 @@ Covariances are returned in the world frame (``x, y, phi``) like the filter's:
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import gtsam
@@ -359,9 +360,9 @@ class _Incremental:
         # the bearing gate (``nis_gate`` > 0): the chain's pose covariance (world frame) since
         # the last LM pass, each landmark's marginal at that pass, the bearings left out
         self.gate = chi2_quantile(cfg.nis_gate, 1) if cfg.nis_gate > 0.0 else math.inf
-        self.outlier = outlier_rate(cfg)
-        if self.outlier > 0.0:  # the outlier model's gate instead (:func:`gate_nis`); finite: gating on
-            self.gate = float(gate_nis(cfg, data.sigma_bearing ** 2))
+        self.threshold = gate_of(cfg)
+        if outlier_rate(cfg) > 0.0:  # the outlier model's gate instead (:func:`gate_of`); finite: gating on
+            self.gate = float(self.threshold(data.sigma_bearing ** 2))
         self.chain_cov = np.asarray(data.start_cov, float).copy()
         self.point_cov: dict[int, np.ndarray] = {}
         self.rejected: set[tuple[int, int]] = set()
@@ -454,7 +455,7 @@ class _Incremental:
         if not math.isfinite(self.gate):
             return math.inf
         s = self.data.sigma_bearing ** 2 + self.chain_cov[2, 2]
-        return math.sqrt(max(float(gate_nis(self.cfg, s)), 0.0) * s)
+        return math.sqrt(max(float(self.threshold(s)), 0.0) * s)
 
     def _consistent(self, lm: int, bearing: float, sigma: float | None = None) -> bool:
         """The chi-square gate on a bearing of a landmark in the graph (``nis_gate``, the same
@@ -469,7 +470,7 @@ class _Incremental:
             return True
         r2, s = _bearing_test(_pose(self.chain), self.chain_cov, self.points[lm], self.point_cov.get(lm),
                               bearing, self.data.sigma_bearing if sigma is None else sigma)
-        return r2 <= gate_nis(self.cfg, s) * s
+        return r2 <= self.threshold(s) * s
 
     def _marginals(self, result: gtsam.Values, e: int) -> None:
         """The newest pose's and the landmarks' marginals at an LM pass's answer (the gate's
@@ -743,15 +744,24 @@ def _solve(data: OmniData, cfg: OmniConfig, kf: Keyframes, start: Start):
 
 def outlier_rate(cfg: OmniConfig) -> float:
     """The bearings' outlier share the estimators assume (``assume_outlier_rate``; 0: none)."""
-    return min(float(getattr(cfg, "assume_outlier_rate", None) or 0.0), 0.5)
+    return float(cfg.assume_outlier_rate or 0.0)
+
+
+def gate_of(cfg: OmniConfig) -> Callable[[np.ndarray | float], np.ndarray | float]:
+    """The normalised squared bearing residual beyond which the graphs leave a bearing of
+    variance ``s`` out, as a function of ``s``: the outlier model's even odds
+    (:func:`workbench.estimation.outliers.even_odds`) where the config assumes one, else the
+    chi-square gate ``nis_gate`` (inf where it is off), made once for a pass over the bearings."""
+    rate = outlier_rate(cfg)
+    if rate > 0.0:
+        return lambda s: outliers.even_odds(s, rate)
+    chi2 = chi2_quantile(cfg.nis_gate, 1) if cfg.nis_gate > 0.0 else math.inf
+    return lambda s: chi2
 
 
 def gate_nis(cfg: OmniConfig, s: np.ndarray | float) -> np.ndarray | float:
-    """The normalised squared bearing residual beyond which the graphs leave a bearing of
-    variance ``s`` out: the outlier model's even odds (:func:`workbench.estimation.outliers.even_odds`)
-    where the config assumes one, else the chi-square gate ``nis_gate`` (inf where it is off)."""
-    out = outliers.gate(s, outlier_rate(cfg), chi2_quantile(cfg.nis_gate, 1) if cfg.nis_gate > 0.0 else math.inf)
-    return float(out) if np.ndim(out) == 0 else out
+    """:func:`gate_of`'s threshold at ``s``."""
+    return gate_of(cfg)(s)
 
 
 def robust_cost(data: OmniData, cfg: OmniConfig, kf: Keyframes, result: gtsam.Values, inserted: np.ndarray
@@ -760,7 +770,7 @@ def robust_cost(data: OmniData, cfg: OmniConfig, kf: Keyframes, result: gtsam.Va
     and the odometry factors' errors (half their squared Mahalanobis norms) plus, for every bearing
     at a keyframe, half its squared normalised residual truncated at the gate's chi-square
     quantile (``nis_gate``, 0.99 where the gate is off; with an outlier model its even odds,
-    :func:`gate_nis`, where the truncated cost is the mixture's likelihood's), a bearing of a landmark not in the map
+    :func:`gate_of`, where the truncated cost is the mixture's likelihood's), a bearing of a landmark not in the map
     counting as one at the gate. Truncated least squares (Yang, Antonante, Tzoumas, Carlone,
     "Graduated non-convexity for robust spatial perception", RA-L 2020, eq. 3): a solution cannot
     lower its cost by leaving bearings out, each one out costs as much as the worst one kept, so
@@ -770,7 +780,7 @@ def robust_cost(data: OmniData, cfg: OmniConfig, kf: Keyframes, result: gtsam.Va
     lm = np.concatenate([lms for lms, _ in kf.bearings]).astype(int)
     b = np.concatenate([bs for _, bs in kf.bearings])
     sigma = np.concatenate(kf.sigmas) if kf.sigmas is not None else np.full(len(b), data.sigma_bearing)
-    gate = (gate_nis(cfg, sigma ** 2) if outlier_rate(cfg) > 0.0
+    gate = (gate_of(cfg)(sigma ** 2) if outlier_rate(cfg) > 0.0
             else np.full(len(b), chi2_quantile(cfg.nis_gate if cfg.nis_gate > 0.0 else 0.99, 1)))
     mapped = inserted[lm]
     r2 = gate.copy()  # a bearing of a landmark not in the map counts at the gate
@@ -852,6 +862,7 @@ def _regate(data: OmniData, cfg: OmniConfig, kf: Keyframes, result: gtsam.Values
     graph gated causally, against a prediction; a bearing it left out while its prediction was
     off comes back here, and one it took in that the whole run disagrees with goes."""
     out = set()
+    threshold = gate_of(cfg)
     for e in range(len(kf.steps)):
         lms, bearings = kf.bearings[e]
         if len(lms) == 0:
@@ -862,7 +873,7 @@ def _regate(data: OmniData, cfg: OmniConfig, kf: Keyframes, result: gtsam.Values
             if not inserted[lm]:
                 continue
             r2, s = _bearing_test(pose, pose_cov, result.atPoint2(L(lm)), lm_cov[lm], b, sigma)
-            if r2 > gate_nis(cfg, s) * s:
+            if r2 > threshold(s) * s:
                 out.add((e, lm))
     return out
 
