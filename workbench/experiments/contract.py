@@ -49,7 +49,7 @@ from pathlib import Path
 from typing import Any
 
 from workbench.errors import WorkbenchError
-from workbench.experiments import diagnosis, figures, markdown, metric, truthfree
+from workbench.experiments import bootstrap, diagnosis, figures, markdown, metric, truthfree
 from workbench.experiments.estimator import Estimator, RunContext, estimate_all, resolve
 from workbench.experiments.settings import COMMON, Option, Scenario, config_json
 
@@ -232,6 +232,7 @@ class Experiment:
         limits.check_values(cfg, flags)  # first: the experiment's own checks may compute with them
         cfg.validate()
         limits.check_memory(cfg)
+        bootstrap.check(self, cfg)
         self.metrics(cfg)
         return cfg
 
@@ -301,7 +302,10 @@ class Experiment:
         every experiment has (:mod:`.truthfree`), every installed metric plugin that applies, and
         the config's ``add_metrics`` (specs)."""
         extra = tuple(getattr(cfg, "add_metrics", ()) or ()) if cfg is not None else ()
-        return list(_metrics(self, extra))
+        out = list(_metrics(self, extra))
+        if cfg is not None and getattr(cfg, "bootstrap", 0) and bootstrap.supported(self):
+            out.append(bootstrap.metric(self))  # the truth-free NEES of datasets simulated from the run's answer
+        return out
 
     @property
     def renamed(self) -> dict[str, str]:

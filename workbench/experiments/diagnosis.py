@@ -29,6 +29,11 @@ pooled and read (:func:`diagnose`), in this order:
 7. **correlated innovations**: the whiteness test fails (a model error a scale does not mend);
 8. **consistent**.
 
+With ``--bootstrap B`` (:mod:`.bootstrap`), the covariance is checked too: the estimator's NEES on
+datasets simulated from the run's own answer, in its band or not (``covers``). A noise that fits
+with a NEES over its band is **overconfident** (under it, **conservative**); beside any other
+verdict, the line says whether the covariance still covers the error (:func:`with_bootstrap`).
+
 The verdict is the first that holds; its figures are all given (``estimators.<name>.diagnosis``
 of the metrics JSON). Readings taken: the innovations are treated as independent in the
 intervals (they are not where the model is wrong), so a factor needs a size as well as a
@@ -74,7 +79,8 @@ ALPHA = 1e-3
 BASIN = 0.999
 """A causal estimator is in another basin than the smoother where its median disagreement is over
 this point of its chi-square."""
-VERDICTS = ("consistent", "too narrow", "too wide", "outliers", "wrong basin", "left out", "correlated",
+VERDICTS = ("consistent", "overconfident", "conservative", "too narrow", "too wide", "outliers", "wrong basin",
+            "left out", "correlated",
             "not enough data")
 
 
@@ -380,6 +386,7 @@ def attach(stats: dict, evidence: list[Mapping[str, Evidence]], names: Mapping[s
         if found is None:
             continue
         entry["diagnosis"] = found
+        with_bootstrap(found, entry)
         entry["left_out"] = found["left_out"]
         entry["left_out_expected"] = found["left_out_expected"]
         found.setdefault("consistent", False if found["verdict"] != "not enough data" else None)
@@ -388,10 +395,44 @@ def attach(stats: dict, evidence: list[Mapping[str, Evidence]], names: Mapping[s
                                                      and found["consistent"])
 
 
+def with_bootstrap(found: dict, entry: Mapping[str, Any]) -> None:
+    """The parametric bootstrap's NEES (:mod:`.bootstrap`), where the run made one, into a diagnosis:
+    ``bootstrap_nees`` with its band and ``covers`` (inside it: the estimator's covariance covers
+    its error on data like these). A noise the data find right with a NEES over its band is the
+    linearisation's fault, not the noise's: the verdict is then **overconfident** (under it,
+    **conservative**)."""
+    v, band = entry.get("bootstrap_nees"), entry.get("bootstrap_nees_band")
+    if v is None or band is None:
+        return
+    found["bootstrap_nees"], found["bootstrap_nees_band"] = v, band
+    found["covers"] = bool(band[0] <= v <= band[1])
+    said = (f"bootstrap NEES {v:.3g} against {band[0]:.3g}-{band[1]:.3g}: its covariance "
+            + ("covers its error on data simulated from its answer" if found["covers"] else
+               "understates its error on data simulated from its answer" if v > band[1] else
+               "overstates its error on data simulated from its answer"))
+    if found["verdict"] == "consistent" and not found["covers"]:
+        found["verdict"] = "overconfident" if v > band[1] else "conservative"
+        found["consistent"] = False
+        found["reason"] = (f"the noise fits the data, but its covariance {'under' if v > band[1] else 'over'}states "
+                           "its error (a linearisation the geometry bends, or a covariance not its own): "
+                           f"{said}; {found['reason']}")
+    else:
+        found["reason"] = f"{found['reason']}; {said}"
+
+
 def line(d: Mapping | None) -> str:
     """A diagnosis in a few words (a table's cell, a recording's title)."""
     if not d:
         return ""
+    text = _words(d)
+    if d.get("covers") is not None and d["verdict"] not in ("overconfident", "conservative"):
+        text += f", bootstrap NEES {d['bootstrap_nees']:.1f} " + ("in band" if d["covers"] else "out of band")
+    elif d.get("covers") is not None:
+        text += f" (bootstrap NEES {d['bootstrap_nees']:.1f})"
+    return text
+
+
+def _words(d: Mapping) -> str:
     v = d["verdict"]
     if v in ("too narrow", "too wide") and d.get("factor"):
         f = d["factor"] if v == "too narrow" else 1.0 / d["factor"]

@@ -149,7 +149,9 @@ class Config:
     ``tune_noise``: before the runs, the noise the data identify estimated on run 0's data by a
     filter's likelihood (:mod:`workbench.tuning.selftune`) and told to every estimator;
     ``estimator_timeout``: the seconds one estimator may take on one run's data before it is
-    stopped and left out like one that raised (0: no limit; :data:`ESTIMATOR_TIMEOUT`)."""
+    stopped and left out like one that raised (0: no limit; :data:`ESTIMATOR_TIMEOUT`);
+    ``bootstrap``: resamples per run simulated from the run's own answer, a truth-free NEES
+    (:mod:`workbench.experiments.bootstrap`; 0: none)."""
 
     scenario: str = ""
     seed: int = 0
@@ -158,6 +160,7 @@ class Config:
     add_metrics: tuple[str, ...] = ()
     tune_noise: bool = by_scenario(False)  # estimate the noise the data identify first (tuning.selftune)
     estimator_timeout: float = ESTIMATOR_TIMEOUT
+    bootstrap: int = 0  # resamples per run from the run's own answer: a truth-free NEES (experiments.bootstrap)
 
     def to_json(self) -> dict:
         return config_json(self)
@@ -216,6 +219,9 @@ COMMON: tuple[Option, ...] = (
     Option("estimator_timeout", "Seconds one estimator may take on one run's data; past it, it is stopped, named and "
            "left out like one that raised (exit 3; its thread is abandoned). 0 or none: no limit.", str,
            parse=parse_timeout),
+    Option("bootstrap", "Resamples per run simulated from the run's own answer (its smoother's trajectory and map, the "
+           "noise the data identify); every estimator reruns on each and its NEES there is `bootstrap_nees`, a "
+           "truth-free check that its covariance covers its error. Costs B runs of every estimator. 0: none.", int),
 )
 """Options of every experiment's config fields beyond its own (:attr:`Experiment.settable`): on
 every experiment command, in sweeps' ``--grid`` / ``--set``, checked by ``validate``."""

@@ -390,6 +390,9 @@ METRICS: tuple[Metric, ...] = (
 )
 """Every omni metric; the results table shows :data:`TABLE`."""
 
+BOOTSTRAP_NEES = "anees"
+"""The NEES the parametric bootstrap reads on each resample (:mod:`workbench.experiments.bootstrap`)."""
+
 NOISE_GROUPS = {"state": "odometry", "measurement": "bearings", "odometry": "odometry", "bearing": "bearings"}
 """What the diagnosis (:mod:`workbench.experiments.diagnosis`) calls the noise groups: a filter's
 state uncertainty is the odometry's (the motion noise), its measurement noise the bearings'; a

@@ -1,0 +1,97 @@
+"""A truth-free NEES: the parametric bootstrap of a run's own answer (Efron and Tibshirani, *An
+Introduction to the Bootstrap*, 1993, ch. 6; used to check an estimator's covariance where no
+truth is known, e.g. Barfoot, *State Estimation for Robotics*, sec. 5.1 on the bias and
+consistency of a nonlinear batch estimate).
+
+With ``--bootstrap B``, each run simulates ``B`` datasets from its own answer, by the
+experiment's ``run.resample(result, cfg, rng)``: the run's smoother's trajectory and map taken as
+the truth, the measurements' schedule kept, and their noise the one the data identify (the
+smoother's variance components, :mod:`.diagnosis`). Every estimator of the run then runs on each as
+it ran on the data (the config's assumptions, its gates), and its NEES against that truth, the
+experiment's own NEES metric (``metrics.BOOTSTRAP_NEES``), is its ``bootstrap_nees``: one figure per
+resample, the mean over its scored steps, so the band counts the resamples (the errors of one run
+are correlated over its steps, as the truth's NEES band counts runs).
+
+What it sees that the residuals cannot: a linearised covariance smaller than the error where the
+geometry bends the problem (a noise that fits the data, and a NEES over its band all the same), and
+whether a noise assumed too wide or narrow still leaves the covariance covering the error. What it
+cannot see: a fault the resampling does not put in (outliers, a misread id, a wrong motion model),
+and a smoother's answer far from the truth (it simulates round the answer it is given).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+from typing import Any
+
+import numpy as np
+
+from workbench.errors import WorkbenchError
+from workbench.experiments.metric import Metric, MetricContext, Values
+
+NAME = "bootstrap_nees"
+MAX_RESAMPLES = 100
+"""More resamples per run than this is a typo, not a study (each costs a run of every estimator)."""
+
+
+def supported(exp: Any) -> bool:
+    """Whether the experiment can simulate from its own answer (its ``run.resample`` and the NEES
+    metric named ``metrics.BOOTSTRAP_NEES``)."""
+    return exp._optional("run", "resample") is not None and exp._optional("metrics", "BOOTSTRAP_NEES") is not None
+
+
+def check(exp: Any, cfg: Any) -> None:
+    """A one-line error for a ``--bootstrap`` the experiment cannot honour."""
+    b = int(getattr(cfg, "bootstrap", 0) or 0)
+    if b == 0:
+        return
+    if not 0 < b <= MAX_RESAMPLES:
+        raise WorkbenchError(f"--bootstrap: resamples per run from 1 to {MAX_RESAMPLES}, got {b}")
+    if not supported(exp):
+        raise WorkbenchError(f"--bootstrap: the {exp.name} experiment cannot simulate from its own answer yet")
+
+
+def metric(exp: Any) -> Metric:
+    """The ``bootstrap_nees`` row of an experiment that supports it (the dimension of its NEES)."""
+    own = {m.name: m for m in exp._optional("metrics", "METRICS", ())}
+    nees = own[exp._optional("metrics", "BOOTSTRAP_NEES")]
+    return Metric(NAME, functools.partial(_nees, exp.name), "",
+                  f"the NEES ({nees.dimension} dof) of the estimator on datasets simulated from the run's own answer, "
+                  "mean over each resample's steps (truth-free: see workbench.experiments.bootstrap)",
+                  reduce="mean", dimension=nees.dimension, independent=True, truth_free=True, window=False)
+
+
+def _nees(experiment: str, data: Any, est: Any, ctx: MetricContext) -> Values | None:
+    found = ctx.shared("bootstrap", lambda: resampled(experiment, ctx))
+    return found.get(ctx.name)
+
+
+def resampled(experiment: str, ctx: MetricContext) -> dict[str, Values]:
+    """Every estimator's bootstrap NEES of one run (the module's text): estimator -> one figure per
+    resample (NaN where it failed on one)."""
+    from workbench.experiments import get
+    from workbench.experiments.contract import run_estimators
+    from workbench.experiments.figures import counted
+
+    exp = get(experiment)
+    cfg = ctx.cfg
+    resample = exp.role("run").resample
+    own = {m.name: m for m in exp._optional("metrics", "METRICS", ())}
+    nees = own[exp.role("metrics").BOOTSTRAP_NEES]
+    rows = [e for e in ctx.estimators.values() if e.name in ctx.estimates]
+    plain = dataclasses.replace(cfg, bootstrap=0)
+    rng = np.random.default_rng([int(cfg.seed), int(ctx.run), 0xB0075])
+    out: dict[str, list[float]] = {e.name: [] for e in rows}
+    for _ in range(int(cfg.bootstrap)):
+        data = resample(ctx.result, cfg, rng)
+        result = run_estimators(exp, plain, ctx.run, rows, data)
+        mctx = MetricContext(plain, ctx.run, estimates=result.estimates, estimators=result.estimators,
+                             products=result.products, cache=result.cache, result=result)
+        for e in rows:
+            v = None
+            if e.name in result.estimates:
+                v = nees(data, result.estimates[e.name], dataclasses.replace(mctx, name=e.name, estimator=e))
+            x = counted(v, exp.settle(plain), nees) if v is not None else np.array([np.nan])
+            out[e.name].append(float(np.nanmean(x)) if np.isfinite(x).any() else np.nan)
+    return {n: Values(np.array(v, float), dof=nees.dimension) for n, v in out.items()}
