@@ -14,7 +14,7 @@ Cells:
 
 A cell **agrees** where the diagnosis calls the estimator consistent (its verdict "consistent",
 or "outliers" its gate took out with its noise right otherwise) exactly where the NEES is inside
-its band; with ``--bootstrap B`` (the omni cells: B resamples per run from the run's own answer,
+its band; with ``--bootstrap B`` (B resamples per run from the run's own answer,
 :mod:`workbench.experiments.bootstrap`), where its truth-free NEES is inside its band (``covers``),
 the noise's verdict beside it; the goals (issue 34): agreement in at least 90 % of the cells, and no estimator whose
 error is 5x its bound called consistent. Beside it, whether the diagnosis names the fault the
@@ -78,7 +78,8 @@ def _cells(runs_omni: int, runs_sea: int, folder: Path, resamples: int = 0) -> l
             if what == "angles" and k == 1.0:
                 continue
             out.append(("sea", f"paper, {what} x{k:g}" if k != 1.0 else "paper, as simulated",
-                        {"scenario": "paper", "runs": runs_sea, **{f: v * k for f, v in fields.items()}}))
+                        {"scenario": "paper", "runs": runs_sea, "bootstrap": resamples,
+                         **{f: v * k for f, v in fields.items()}}))
     return out
 
 
@@ -129,11 +130,14 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--bootstrap", type=int, default=0,
                     help="resamples per run from each omni run's own answer: the truth-free NEES decides consistency")
     ap.add_argument("--out", type=Path, default=None, help="also write the table here (markdown)")
+    ap.add_argument("--only", choices=("omni", "sea"), default=None, help="the one experiment's cells alone")
     args = ap.parse_args(argv)
     rows, agree, total, fooled, faults_named, faults_total = [], 0, 0, [], 0, 0
     t0 = time.perf_counter()
     with tempfile.TemporaryDirectory() as tmp:
         for experiment, cell, kw in _cells(args.runs_omni, args.runs_sea, Path(tmp), args.bootstrap):
+            if args.only not in (None, experiment):
+                continue
             scenario = kw.pop("scenario")
             data = kw.pop("data", None)
             if data is not None:

@@ -59,10 +59,22 @@ def test_the_bootstrap_nees_tells_a_covariance_that_does_not_cover_its_error():
 
 
 def test_the_bootstrap_is_refused_where_it_cannot_be_made(tmp_path):
-    """sea cannot simulate from its answer yet, and 0 < B <= 100: a one-line error, exit 2."""
-    r = cli("sea", "--bootstrap", "2", "--runs", "1", "--out", str(tmp_path / "x.rrd"))
+    """terrain cannot simulate from its answer yet, and 0 < B <= 100: a one-line error, exit 2."""
+    r = cli("terrain", "--bootstrap", "2", "--runs", "1", "--out", str(tmp_path / "x.rrd"))
     assert r.returncode == 2 and "--bootstrap" in r.stderr and len(r.stderr.strip().splitlines()) == 1
     with pytest.raises(Exception, match="--bootstrap"):
         api.run("omni", "paper", duration=10.0, bootstrap=1000)
     cfg = api.configure("omni", "paper")
     assert dataclasses.replace(cfg, bootstrap=0).bootstrap == 0
+
+
+def test_sea_resamples_its_own_answer_and_its_ekf_nees_follows_the_truths():
+    """sea, the paper's simulation, 20 runs of 2 resamples: the EKF's bootstrap NEES inside its
+    band as the truth's is (measured 3.9 against the truth's 4.1), and with the angles assumed 3x
+    too wide both fall under their bands (1.4 and 1.9)."""
+    right = api.run("sea", "paper", runs=20, bootstrap=2, estimators="ekf,gtsam").metrics["estimators"]["ekf"]
+    lo, hi = right["bootstrap_nees_band"]
+    assert lo <= right["bootstrap_nees"] <= hi and lo <= right["anees"] <= hi
+    wide = api.run("sea", "paper", runs=20, bootstrap=2, estimators="ekf,gtsam", assume_sigma_alpha_arcmin=2.64,
+                   assume_sigma_beta_arcmin=4.68).metrics["estimators"]["ekf"]
+    assert wide["bootstrap_nees"] < lo and wide["anees"] < lo and wide["diagnosis"]["covers"] is False

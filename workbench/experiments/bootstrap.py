@@ -4,7 +4,7 @@ truth is known, e.g. Barfoot, *State Estimation for Robotics*, sec. 5.1 on the b
 consistency of a nonlinear batch estimate).
 
 With ``--bootstrap B``, each run simulates ``B`` datasets from its own answer, by the
-experiment's ``run.resample(result, cfg, rng)``: the run's smoother's trajectory and map taken as
+experiment's ``run.resample(result, cfg, rng)`` (omni's and sea's ``resample`` modules): the run's smoother's trajectory and map taken as
 the truth, the measurements' schedule kept, and their noise the one the data identify (the
 smoother's variance components, :mod:`.diagnosis`). Every estimator of the run then runs on each as
 it ran on the data (the config's assumptions, its gates), and its NEES against that truth, the

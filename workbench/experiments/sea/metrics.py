@@ -202,6 +202,9 @@ METRICS: tuple[Metric, ...] = (
 )
 """Every sea metric; the results table shows :data:`TABLE` (each with its spread over runs)."""
 
+BOOTSTRAP_NEES = "anees"
+"""The NEES the parametric bootstrap reads on each resample (:mod:`workbench.experiments.bootstrap`)."""
+
 NOISE_GROUPS = {"state": "acceleration", "measurement": "angles", "motion": "acceleration", "angle": "angles"}
 """What the diagnosis (:mod:`workbench.experiments.diagnosis`) calls the noise groups: a filter's
 state uncertainty is the target's acceleration noise, its measurement noise the angles'."""

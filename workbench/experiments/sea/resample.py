@@ -1,0 +1,94 @@
+"""Datasets simulated from a run's own answer: the sea side of the parametric bootstrap
+(:mod:`workbench.experiments.bootstrap`; Efron and Tibshirani 1993, ch. 6).
+
+The truth of a resample:
+
+* the object: a nearly-constant-velocity track (the estimators' model, :func:`.scenario.
+  simulate_target`) from the run's smoother's state at the first step it holds one, its
+  acceleration noise the one the estimators were told times the factor the data identify;
+* the camera: where the fixes put it, the known velocity's path ``d_k`` plus the fixes' mean
+  offset (:mod:`.observer`), or the fixes themselves where the velocity is not known; its fixes
+  that path with the told noise;
+* the angles (1)-(2) from that camera to that object at the steps the data saw it, with the told
+  noise times the identified factor; no impulse.
+
+The factors: the run's EKF's diagnosis (:mod:`workbench.experiments.diagnosis`), which tells the
+acceleration's share of its innovations from the angles' (1 where it does not identify one, or the
+run has no EKF). The resample states the data's own noise, so the config's assumptions apply to it
+as they did to the data.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any
+
+import numpy as np
+
+from workbench.errors import WorkbenchError
+from workbench.experiments import diagnosis, truthfree
+from workbench.experiments.sea import geometry
+from workbench.experiments.sea.scenario import SeaData
+
+FACTOR_RANGE = (0.1, 10.0)
+"""An identified noise factor outside this is taken at its end."""
+
+
+def factors(result: Any) -> dict[str, float]:
+    """The noise factors (sigma) the run's EKF's innovations identify: ``acceleration``, ``angles``."""
+    from workbench.experiments.sea.metrics import NOISE_GROUPS
+
+    out = {"acceleration": 1.0, "angles": 1.0}
+    est = result.estimates.get("ekf")
+    found = diagnosis.diagnose(diagnosis.evidence(est), NOISE_GROUPS) if est is not None else None
+    for g, v in ((found or {}).get("groups") or {}).items():
+        if g in out and v.get("identified"):
+            out[g] = float(np.clip(v["factor"], *FACTOR_RANGE))
+    return out
+
+
+def _camera(data: SeaData) -> np.ndarray:
+    """The camera's path as the fixes give it: the known velocity's path plus their mean offset."""
+    if not data.velocity_known:
+        return np.asarray(data.observer_meas, float).copy()
+    v = np.asarray(data.observer_velocity, float)
+    d = np.concatenate([np.zeros((1, 2)), np.cumsum(0.5 * (v[1:] + v[:-1]) * np.diff(data.t)[:, None], axis=0)])
+    return d + np.nanmean(np.asarray(data.observer_meas, float) - d, axis=0)
+
+
+def resample(result: Any, cfg: Any, rng: np.random.Generator) -> SeaData:
+    """One dataset simulated from the run's answer (the module's text)."""
+    from workbench.experiments.sea.run import assumed
+
+    data: SeaData = result.data
+    if getattr(cfg, "from_images", False):
+        raise WorkbenchError("--bootstrap: angles from images cannot be resampled (their noise is the image stage's)")
+    name = truthfree.smoother(result.estimators, result.estimates)
+    est = result.estimates.get(name) if name else None
+    if est is None or est.velocity is None:
+        raise WorkbenchError("--bootstrap: the run needs a smoother with velocities (gtsam) to simulate from")
+    state = np.concatenate([est.position, est.velocity], axis=1)
+    first = np.flatnonzero(np.isfinite(state).all(axis=1))
+    if not len(first):
+        raise WorkbenchError("--bootstrap: the run's smoother holds no state to simulate from")
+    k = result.shared("bootstrap factors", lambda: factors(result))
+    told = assumed(data, cfg)
+    T, dt, i0 = data.steps, data.dt, int(first[0])
+    w = rng.normal(0.0, told.sigma_acc * k["acceleration"], size=(T - 1, 2))
+    target = np.empty((T, 4))
+    target[i0] = state[i0]
+    for i in range(i0, T - 1):  # forwards, then backwards in time from the state the smoother held
+        target[i + 1, 2:] = target[i, 2:] + dt * w[i]
+        target[i + 1, :2] = target[i, :2] + dt * target[i, 2:] + dt ** 2 / 2.0 * w[i]
+    for i in range(i0, 0, -1):
+        target[i - 1, 2:] = target[i, 2:] - dt * w[i - 1]
+        target[i - 1, :2] = target[i, :2] - dt * target[i - 1, 2:] - dt ** 2 / 2.0 * w[i - 1]
+    camera = _camera(data)
+    alpha, beta = geometry.angles(target[:, :2], camera, data.course, data.height)
+    seen = np.asarray(data.seen, bool)
+    am = np.where(seen, alpha + rng.normal(0.0, told.sigma_alpha * k["angles"], T), np.nan)
+    bm = np.where(seen, beta + rng.normal(0.0, told.sigma_beta * k["angles"], T), np.nan)
+    fixes = camera + rng.normal(0.0, told.sigma_observer, (T, 2))
+    return dataclasses.replace(data, observer=camera, observer_meas=fixes, target=target, alpha=alpha, beta=beta,
+                               alpha_meas=am, beta_meas=bm, disturbed=np.zeros(T, bool), impulse=None,
+                               label=f"bootstrap of {data.label}", repairs=None)
