@@ -78,3 +78,17 @@ def test_sea_resamples_its_own_answer_and_its_ekf_nees_follows_the_truths():
     wide = api.run("sea", "paper", runs=20, bootstrap=2, estimators="ekf,gtsam", assume_sigma_alpha_arcmin=2.64,
                    assume_sigma_beta_arcmin=4.68).metrics["estimators"]["ekf"]
     assert wide["bootstrap_nees"] < lo and wide["anees"] < lo and wide["diagnosis"]["covers"] is False
+
+
+def test_the_iterated_variance_components_size_a_wrong_noise():
+    """The odometry assumed 3x too wide: one step of variance component estimation from the
+    batch's residuals says x0.65 (pulled toward the assumed noise); the bootstrap's iteration says
+    x0.31 (within 15 % of the true 1/3), and the diagnosis sizes the fault by it (x3.2), the
+    bearings' left at 1 (within 5 %)."""
+    e = api.run("omni", "paper", duration=150.0, settle=20.0, bootstrap=1, estimators="gtsam-batch",
+                assume_sigma_v=0.3, assume_sigma_gamma_deg=9.0).metrics["estimators"]["gtsam-batch"]
+    d = e["diagnosis"]
+    odo, brg = d["groups"]["odometry"], d["groups"]["bearings"]
+    assert 0.55 < odo["factor"] < 0.75 and abs(odo["iterated"] * 3.0 - 1.0) < 0.15
+    assert abs(brg["iterated"] - 1.0) < 0.05
+    assert d["verdict"] == "too wide" and abs(1.0 / d["factor"] - 3.0) < 0.45 and d["group"] == "odometry"

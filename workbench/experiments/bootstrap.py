@@ -3,14 +3,15 @@ Introduction to the Bootstrap*, 1993, ch. 6; used to check an estimator's covari
 truth is known, e.g. Barfoot, *State Estimation for Robotics*, sec. 5.1 on the bias and
 consistency of a nonlinear batch estimate).
 
-With ``--bootstrap B``, each run simulates ``B`` datasets from its own answer, by the
-experiment's ``run.resample(result, cfg, rng)`` (omni's and sea's ``resample`` modules): the run's smoother's trajectory and map taken as
-the truth, the measurements' schedule kept, and their noise the one the data identify (the
-smoother's variance components, :mod:`.diagnosis`). Every estimator of the run then runs on each as
-it ran on the data (the config's assumptions, its gates), and its NEES against that truth, the
-experiment's own NEES metric (``metrics.BOOTSTRAP_NEES``), is its ``bootstrap_nees``: one figure per
-resample, the mean over its scored steps, so the band counts the resamples (the errors of one run
-are correlated over its steps, as the truth's NEES band counts runs).
+With ``--bootstrap B``, each run simulates ``B`` datasets from its own answer, by the experiment's
+``run.resample(result, cfg, rng)`` (omni's and sea's ``resample`` modules): the run's smoother's
+trajectory and map taken as the truth, the measurements' schedule kept, and their noise the one
+the data identify (the smoother's variance components, :mod:`.diagnosis`). Every estimator of the
+run then runs on each as it ran on the data (the config's assumptions, its gates), and its NEES
+against that truth, the experiment's own NEES metric (``metrics.BOOTSTRAP_NEES``), is its
+``bootstrap_nees``: one figure per resample, the mean over its scored steps, so the band counts
+the resamples (the errors of one run are correlated over its steps, as the truth's NEES band
+counts runs).
 
 What it sees that the residuals cannot: a linearised covariance smaller than the error where the
 geometry bends the problem (a noise that fits the data, and a NEES over its band all the same), and

@@ -53,6 +53,10 @@ from workbench.experiments import bootstrap, diagnosis, figures, markdown, metri
 from workbench.experiments.estimator import Estimator, RunContext, estimate_all, resolve
 from workbench.experiments.settings import COMMON, Option, Scenario, config_json
 
+ITERATED = "iterated variance components"
+"""The run's cache key where an experiment's bootstrap keeps its smoother's iterated noise factors
+(group -> sigma factor, the diagnosis's group names): the diagnosis then sizes a wrong noise by them."""
+
 GENERIC = ("evaluate", "record")
 """Roles an experiment may leave out: :mod:`.generic` stands in (``report`` too, by :meth:`Experiment.table`)."""
 
@@ -327,6 +331,10 @@ class Experiment:
         metrics = self.metrics(cfg)
         summary.metrics, summary.metric_failures = metric.evaluate(metrics, result.data, result.estimates, ctx)
         summary.evidence = diagnosis.collect(metrics, result.estimates, summary.metrics)
+        iterated = result.cache.get(ITERATED)  # the bootstrap's iterated variance components of the run's smoother
+        ref = truthfree.smoother(result.estimators, result.estimates)
+        if isinstance(iterated, dict) and ref in summary.evidence:
+            summary.evidence[ref].iterated = [dict(iterated)]
         return summary
 
     def run_metrics(self, summary: RunSummary, cfg: Any) -> dict[str, dict[str, float]]:

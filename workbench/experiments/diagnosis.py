@@ -106,6 +106,7 @@ class Evidence:
     disagreement: np.ndarray | None = None
     dimension: int = 0
     unmapped: list[float] = field(default_factory=list)  # [measurements of what the map does not hold, all]
+    iterated: list[dict[str, float]] = field(default_factory=list)  # each run's iterated variance components
 
 
 def _censor(kept: np.ndarray, q: np.ndarray, dof: np.ndarray, gate: float | None) -> np.ndarray:
@@ -212,7 +213,7 @@ def pool(items: list[Evidence]) -> Evidence | None:
         else []
     return Evidence(items[0].kind, cat("q"), cat("dof"), cat("kept"), cat("share"), cat("censor"), items[0].gate,
                     groups, [w for e in items for w in e.whiteness], np.concatenate(dis) if dis else None,
-                    items[0].dimension, unmapped)
+                    items[0].dimension, unmapped, [d for e in items for d in e.iterated])
 
 
 def _outside(value: float | None, interval: tuple[float, float] | None) -> int:
@@ -286,6 +287,10 @@ def diagnose(ev: Evidence | None, names: Mapping[str, str] | None = None) -> dic
                        "interval": None if iv is None else [math.sqrt(iv[0]), math.sqrt(iv[1])]}
     out["groups"] = groups
 
+    for g, v in groups.items():  # a smoother's components iterated by solving again (the bootstrap's): the size
+        got = [d[g] for d in ev.iterated if d.get(g) is not None]
+        if got:
+            v["iterated"] = float(np.exp(np.mean(np.log(got))))
     for v in groups.values():
         iv = v["interval"]
         v["identified"] = bool(iv is not None and np.isfinite(iv).all() and iv[0] > 0 and iv[1] / iv[0] < UNIDENTIFIED)
@@ -294,7 +299,8 @@ def diagnose(ev: Evidence | None, names: Mapping[str, str] | None = None) -> dic
     said = (f"{_pct(left)} of {handed} measurements left out, "
             + (f"{_pct(expected)} expected at its gate" if ev.gate else "no gate") + "; "
             + "; ".join((f"{g} x{v['factor']:.2f}" + (f" [{v['interval'][0]:.2f}-{v['interval'][1]:.2f}]"
-                                                      if v["interval"] else "")) if v["identified"] else
+                                                      if v["interval"] else "")
+                         + (f" (x{v['iterated']:.2f} iterated)" if "iterated" in v else "")) if v["identified"] else
                         f"{g} not identified" for g, v in groups.items()))
     direction = {g: _outside(v["factor"], tuple(v["interval"])) if v["identified"] else 0 for g, v in groups.items()}
     if "gof_p" in out:
@@ -331,13 +337,13 @@ def diagnose(ev: Evidence | None, names: Mapping[str, str] | None = None) -> dic
     if tailed and best.eps >= TAIL_FIRST:
         return outliers()
     if narrow:
-        f = max(groups[g]["factor"] for g in narrow)
+        f = max(groups[g].get("iterated", groups[g]["factor"]) for g in narrow)
         return {"verdict": "too narrow", "factor": f, "group": ", ".join(narrow),
                 "reason": f"noise assumed too narrow by about {f:.2g}x ({', '.join(narrow)}): " + said, **out}
     if basin is not None:
         return {"verdict": "wrong basin", "factor": None, "group": None, "reason": said, **out}
     if wide:
-        f = min(groups[g]["factor"] for g in wide)
+        f = min(groups[g].get("iterated", groups[g]["factor"]) for g in wide)
         return {"verdict": "too wide", "factor": f, "group": ", ".join(wide),
                 "reason": f"noise assumed too wide by about {1 / f:.2g}x ({', '.join(wide)}): " + said, **out}
     if tailed:

@@ -32,6 +32,7 @@ import numpy as np
 from workbench.errors import WorkbenchError
 from workbench.estimation.angles import wrap
 from workbench.experiments import diagnosis, truthfree
+from workbench.experiments.contract import ITERATED
 from workbench.experiments.omni.evaluate import on_grid
 from workbench.experiments.omni.scenario import OmniData
 
@@ -149,7 +150,7 @@ def resample(result: Any, cfg: Any, rng: np.random.Generator) -> OmniData:
     if getattr(cfg, "from_images", False):
         raise WorkbenchError("--bootstrap: bearings from images cannot be resampled (their noise is the image stage's)")
     _, est = reference(result)
-    k = result.shared("bootstrap factors", lambda: factors(result, cfg))
+    k = result.shared(ITERATED, lambda: factors(result, cfg))  # the diagnosis gives them beside its one step
     told = assumed(data, cfg)
     truth, noisy = _path(data, told, k["odometry"], rng)
     pose = est.smoothed if getattr(est, "smoothed", None) is not None else est.pose
