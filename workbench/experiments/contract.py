@@ -53,10 +53,6 @@ from workbench.experiments import bootstrap, diagnosis, figures, markdown, metri
 from workbench.experiments.estimator import Estimator, RunContext, estimate_all, resolve
 from workbench.experiments.settings import COMMON, Option, Scenario, config_json
 
-ITERATED = "iterated variance components"
-"""The run's cache key where an experiment's bootstrap keeps its smoother's iterated noise factors
-(group -> sigma factor, the diagnosis's group names): the diagnosis then sizes a wrong noise by them."""
-
 GENERIC = ("evaluate", "record")
 """Roles an experiment may leave out: :mod:`.generic` stands in (``report`` too, by :meth:`Experiment.table`)."""
 
@@ -236,8 +232,7 @@ class Experiment:
         limits.check_values(cfg, flags)  # first: the experiment's own checks may compute with them
         cfg.validate()
         limits.check_memory(cfg)
-        bootstrap.check(self, cfg)
-        self.metrics(cfg)
+        self.metrics(cfg)  # they resolve (and a --bootstrap the experiment cannot make is said)
         return cfg
 
     def select(self, selection: Iterable[Any] | str | None = None) -> list[Estimator]:
@@ -306,10 +301,7 @@ class Experiment:
         every experiment has (:mod:`.truthfree`), every installed metric plugin that applies, and
         the config's ``add_metrics`` (specs)."""
         extra = tuple(getattr(cfg, "add_metrics", ()) or ()) if cfg is not None else ()
-        out = list(_metrics(self, extra))
-        if cfg is not None and getattr(cfg, "bootstrap", 0) and bootstrap.supported(self):
-            out.append(bootstrap.metric(self))  # the truth-free NEES of datasets simulated from the run's answer
-        return out
+        return [*_metrics(self, extra), *bootstrap.rows(self, cfg)]  # the bootstrap's NEES, where asked for
 
     @property
     def renamed(self) -> dict[str, str]:
@@ -331,10 +323,7 @@ class Experiment:
         metrics = self.metrics(cfg)
         summary.metrics, summary.metric_failures = metric.evaluate(metrics, result.data, result.estimates, ctx)
         summary.evidence = diagnosis.collect(metrics, result.estimates, summary.metrics)
-        iterated = result.cache.get(ITERATED)  # the bootstrap's iterated variance components of the run's smoother
-        ref = truthfree.smoother(result.estimators, result.estimates)
-        if isinstance(iterated, dict) and ref in summary.evidence:
-            summary.evidence[ref].iterated = [dict(iterated)]
+        bootstrap.carry(result, summary)  # the bootstrap's iterated noise factors of the run's smoother
         return summary
 
     def run_metrics(self, summary: RunSummary, cfg: Any) -> dict[str, dict[str, float]]:

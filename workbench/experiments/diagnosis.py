@@ -32,7 +32,7 @@ pooled and read (:func:`diagnose`), in this order:
 With ``--bootstrap B`` (:mod:`.bootstrap`), the covariance is checked too: the estimator's NEES on
 datasets simulated from the run's own answer, in its band or not (``covers``). A noise that fits
 with a NEES over its band is **overconfident** (under it, **conservative**); beside any other
-verdict, the line says whether the covariance still covers the error (:func:`with_bootstrap`).
+verdict, the line says whether the covariance still covers the error (:func:`.bootstrap.into_diagnosis`).
 
 The verdict is the first that holds; its figures are all given (``estimators.<name>.diagnosis``
 of the metrics JSON). Readings taken: the innovations are treated as independent in the
@@ -53,6 +53,7 @@ from scipy import stats as sstats
 from workbench.estimation import noisefit
 from workbench.estimation.consistency import Innovations, Residuals
 from workbench.estimation.metrics import chi2_quantile
+from workbench.experiments import bootstrap
 from workbench.experiments.truthfree import WHITE_MAX
 
 MIN_ROWS = 30
@@ -392,38 +393,13 @@ def attach(stats: dict, evidence: list[Mapping[str, Evidence]], names: Mapping[s
         if found is None:
             continue
         entry["diagnosis"] = found
-        with_bootstrap(found, entry)
+        bootstrap.into_diagnosis(found, entry)
         entry["left_out"] = found["left_out"]
         entry["left_out_expected"] = found["left_out_expected"]
         found.setdefault("consistent", False if found["verdict"] != "not enough data" else None)
         if found["consistent"] is not None:
             entry["consistent_without_truth"] = bool(entry.get("consistent_without_truth", True)
                                                      and found["consistent"])
-
-
-def with_bootstrap(found: dict, entry: Mapping[str, Any]) -> None:
-    """The parametric bootstrap's NEES (:mod:`.bootstrap`), where the run made one, into a diagnosis:
-    ``bootstrap_nees`` with its band and ``covers`` (inside it: the estimator's covariance covers
-    its error on data like these). A noise the data find right with a NEES over its band is the
-    linearisation's fault, not the noise's: the verdict is then **overconfident** (under it,
-    **conservative**)."""
-    v, band = entry.get("bootstrap_nees"), entry.get("bootstrap_nees_band")
-    if v is None or band is None:
-        return
-    found["bootstrap_nees"], found["bootstrap_nees_band"] = v, band
-    found["covers"] = bool(band[0] <= v <= band[1])
-    said = (f"bootstrap NEES {v:.3g} against {band[0]:.3g}-{band[1]:.3g}: its covariance "
-            + ("covers its error on data simulated from its answer" if found["covers"] else
-               "understates its error on data simulated from its answer" if v > band[1] else
-               "overstates its error on data simulated from its answer"))
-    if found["verdict"] == "consistent" and not found["covers"]:
-        found["verdict"] = "overconfident" if v > band[1] else "conservative"
-        found["consistent"] = False
-        found["reason"] = (f"the noise fits the data, but its covariance {'under' if v > band[1] else 'over'}states "
-                           "its error (a linearisation the geometry bends, or a covariance not its own): "
-                           f"{said}; {found['reason']}")
-    else:
-        found["reason"] = f"{found['reason']}; {said}"
 
 
 def line(d: Mapping | None) -> str:

@@ -72,7 +72,9 @@ def bounds(data: OmniData, cfg: OmniConfig, keyframes: graph.Keyframes | None = 
     track: the bound is linearised at the true poses, so it needs them (heading too) at
     ``TRUTH_COVERAGE`` of the grid's steps at least (MRCLAM robot 4's short Vicon gaps are
     interpolated: :func:`.bounds._truth`); a sparse fix now and then, or positions alone, gives none;
-    nor does a map without the true place of every landmark seen."""
+    nor does a map without the true place of every landmark seen, nor a noise so large that the
+    bound's systems are numerically singular (a speed noise of 5e5 m/s: the efficiencies are then
+    not given, the run goes on)."""
     if cfg.from_images or np.isfinite(data.truth[data.grid]).all(axis=1).mean() < TRUTH_COVERAGE:
         return {}
     if not np.isfinite(data.landmarks[np.unique(data.meas_lm)]).all():
@@ -81,7 +83,10 @@ def bounds(data: OmniData, cfg: OmniConfig, keyframes: graph.Keyframes | None = 
 
     # (the estimators' keyframes carry the noise they were told; the bound is the data's own)
     kf = keyframes if keyframes is not None and not assumes(cfg) else graph.keyframes(data, cfg)
-    return omni_bounds.variances(data, kf, {0.0, float("inf")})
+    try:
+        return omni_bounds.variances(data, kf, {0.0, float("inf")})
+    except (np.linalg.LinAlgError, RuntimeError):  # a noise so large the information is numerically nought
+        return {}
 
 
 @dataclass

@@ -32,7 +32,7 @@ import numpy as np
 from workbench.errors import WorkbenchError
 from workbench.estimation.angles import wrap
 from workbench.experiments import diagnosis, truthfree
-from workbench.experiments.contract import ITERATED
+from workbench.experiments.bootstrap import ITERATED
 from workbench.experiments.omni.evaluate import on_grid
 from workbench.experiments.omni.scenario import OmniData
 

@@ -159,13 +159,6 @@ def with_stage(cfg: OmniConfig, run: int, record: bool = False) -> tuple[OmniDat
     return data, stage
 
 
-def resample(result: RunResult, cfg: OmniConfig, rng: np.random.Generator) -> OmniData:
-    """A dataset simulated from the run's own answer (the bootstrap's: :mod:`.resample`)."""
-    from workbench.experiments.omni import resample as own
-
-    return own.resample(result, cfg, rng)
-
-
 def run_once(cfg: OmniConfig, run: int, estimators: list[Estimator], record: bool = False,
              threads: int = 1) -> RunResult:
     """One run; ``record`` keeps what the recording draws (the image stage's frames,

@@ -137,13 +137,6 @@ def assumed(data: SeaData, cfg: SeaConfig) -> SeaData:
     return settings.assumed(data, cfg, ASSUMED)
 
 
-def resample(result: contract.RunResult, cfg: SeaConfig, rng: np.random.Generator) -> SeaData:
-    """A dataset simulated from the run's own answer (the bootstrap's: :mod:`.resample`)."""
-    from workbench.experiments.sea import resample as own
-
-    return own.resample(result, cfg, rng)
-
-
 IDENTIFIED = 0.25
 """An angle's own noise is tuned where it is at least this share of the variance of the angle the
 filter sees (the camera's position noise adds the rest): below it a 25 % change of it moves the
