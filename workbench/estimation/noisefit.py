@@ -209,10 +209,17 @@ def fit(q: np.ndarray, dof: np.ndarray | int, share: np.ndarray | None = None, c
     try:
         H = _hessian(f, best.x)
         names = ["a", "b"] if split else ["k"]
+        # a factor the likelihood no longer feels (driven to its bound, 0: its share of every row
+        # nought) is held there, and the others' intervals are the rest's information alone: the
+        # profile at the boundary (inverting with it in, its near-zero curvature swamps the others'
+        # in rounding, whose last bits differ from one processor's kernels to another's)
+        d_h = np.abs(np.diag(H))
+        free = np.flatnonzero(d_h > 1e-9 * max(float(d_h.max()), 1e-300))
+        var = np.full(len(H), np.inf)
         try:
-            var = np.diag(np.linalg.inv(H))
+            var[free] = np.diag(np.linalg.inv(H[np.ix_(free, free)]))
         except np.linalg.LinAlgError:
-            var = np.full(len(H), -1.0)
+            var[free] = -1.0
         for i, name in enumerate(names):
             if not var[i] > 0:  # a singular information (a factor at its bound: 0): its own curvature, the others held
                 var[i] = 1.0 / H[i, i] if H[i, i] > 0 else np.inf
