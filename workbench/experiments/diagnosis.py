@@ -276,11 +276,7 @@ def diagnose(ev: Evidence | None, names: Mapping[str, str] | None = None) -> dic
             iv = best.intervals.get("a" if key == "state" else "b")
             groups[names.get(key, key)] = {"factor": math.sqrt(v),
                                            "interval": None if iv is None else [math.sqrt(iv[0]), math.sqrt(iv[1])]}
-    for g, (s, red, n) in ev.groups.items():  # a smoother: each group's variance component
-        vc = noisefit.variance_components(np.array([s]), red)
-        if vc is not None:
-            groups[names.get(g, g)] = {"factor": math.sqrt(vc[0]), "interval": [math.sqrt(vc[1][0]),
-                                                                                 math.sqrt(vc[1][1])], "rows": n}
+    groups.update(components(ev, names))  # a smoother: each group's variance component
     if not groups:  # one scale: a smoother's measurements, or innovations whose noise parts are not given
         iv = best.intervals.get("k")
         one = names["measurement"] if ev.kind == "residuals" else "all"
@@ -294,7 +290,7 @@ def diagnose(ev: Evidence | None, names: Mapping[str, str] | None = None) -> dic
             v["iterated"] = float(np.exp(np.mean(np.log(got))))
     for v in groups.values():
         iv = v["interval"]
-        v["identified"] = bool(iv is not None and np.isfinite(iv).all() and iv[0] > 0 and iv[1] / iv[0] < UNIDENTIFIED)
+        v["identified"] = identified(iv)
         if iv is not None and not v["identified"]:
             v["interval"] = None
     said = (f"{_pct(left)} of {handed} measurements left out, "
@@ -364,6 +360,25 @@ def diagnose(ev: Evidence | None, names: Mapping[str, str] | None = None) -> dic
 GOF_ROWS = 5000
 """The goodness-of-fit tests read at most this many rows (drawn at random, seeded): their p-values are figures
 to read beside the verdict, which the likelihood decides."""
+
+
+def components(ev: Evidence, names: Mapping[str, str]) -> dict[str, dict]:
+    """A smoother's residual groups' variance components (Förstner 1979; one step, at the weights it
+    was solved with): group (as ``names`` call it) -> ``factor`` (sigma), its 95 % ``interval``, ``rows``."""
+    out = {}
+    for g, (s, red, n) in ev.groups.items():
+        vc = noisefit.variance_components(np.array([s]), red)
+        if vc is not None:
+            out[names.get(g, g)] = {"factor": math.sqrt(vc[0]), "interval": [math.sqrt(vc[1][0]), math.sqrt(vc[1][1])],
+                                    "rows": n}
+    return out
+
+
+def identified(interval: Any) -> bool:
+    """Whether a factor's 95 % interval says the data identify it (finite, positive, narrower than
+    :data:`UNIDENTIFIED`)."""
+    iv = interval
+    return bool(iv is not None and np.isfinite(iv).all() and iv[0] > 0 and iv[1] / iv[0] < UNIDENTIFIED)
 
 
 def goodness_of_fit(q: np.ndarray, dof: np.ndarray, k: float) -> dict:

@@ -56,27 +56,28 @@ def reference(result: Any) -> tuple[str, Any]:
 
 def _one_step(est: Any) -> dict[str, float]:
     """One step of variance component estimation from the smoother's residuals (the diagnosis's
-    factors, :mod:`workbench.experiments.diagnosis`): ``odometry``, ``bearings`` (1 where not
-    identified)."""
+    factors, :func:`workbench.experiments.diagnosis.components`, without the rest of its fits):
+    ``odometry``, ``bearings`` (1 where not identified, or too few rows to say)."""
     from workbench.experiments.omni.metrics import NOISE_GROUPS
 
-    found = diagnosis.diagnose(diagnosis.evidence(est), NOISE_GROUPS) or {}
     out = {"odometry": 1.0, "bearings": 1.0}
-    for g, v in (found.get("groups") or {}).items():
-        if g in out and v.get("identified"):
+    ev = diagnosis.evidence(est)
+    if ev is None or np.isfinite(ev.q).sum() < diagnosis.MIN_ROWS:
+        return out
+    for g, v in diagnosis.components(ev, NOISE_GROUPS).items():
+        if g in out and diagnosis.identified(v["interval"]):
             out[g] = float(v["factor"])
     return out
 
 
 def factors(result: Any, cfg: Any) -> dict[str, float]:
     """The noise factors (sigma) on what the estimators were told that the data identify: the
-    reference smoother's variance components, iterated (the smoother solved again with each
-    round's factors, at most :data:`VCE_ROUNDS` solves in all) while they contract, the rest of the
-way extrapolated (Aitken's delta-squared). One step from a
-    wrong start is pulled toward it (Koch, *Parameter Estimation and Hypothesis Testing in Linear
-    Models*, sec. 3.6.3: the estimate is unbiased only at the true weights; on the paper's
-    simulation with the odometry assumed 3x too wide, one step says 1.5x); the fixed point is
-    the components' maximum likelihood (REML)."""
+    reference smoother's variance components, iterated (the smoother solved again with each round's
+    factors, at most :data:`VCE_ROUNDS` solves in all) while they contract, the rest of the way
+    extrapolated (Aitken's delta-squared). One step from a wrong start is pulled toward it (Koch,
+    *Parameter Estimation and Hypothesis Testing in Linear Models*, sec. 3.6.3: the estimate is
+    unbiased only at the true weights; on the paper's simulation with the odometry assumed 3x too
+    wide, one step says 1.5x); the fixed point is the components' maximum likelihood (REML)."""
     from workbench.experiments import get
 
     name, est = reference(result)

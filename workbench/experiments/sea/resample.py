@@ -47,6 +47,22 @@ def factors(result: Any) -> dict[str, float]:
     return out
 
 
+def _track(x0: np.ndarray, i0: int, w: np.ndarray, dt: float) -> np.ndarray:
+    """The nearly-constant-velocity track ``(T, 4)`` through state ``x0`` at step ``i0`` driven by the
+    accelerations ``w (T-1, 2)`` (:func:`.scenario.simulate_target`'s recursion), forwards from it and
+    backwards to it, by cumulative sums."""
+    T = len(w) + 1
+    vel, pos = np.empty((T, 2)), np.empty((T, 2))
+    vel[i0], pos[i0] = x0[2:], x0[:2]
+    ahead = w[i0:]
+    vel[i0 + 1:] = x0[2:] + dt * np.cumsum(ahead, axis=0)
+    pos[i0 + 1:] = x0[:2] + np.cumsum(dt * vel[i0:-1] + dt ** 2 / 2.0 * ahead, axis=0)
+    behind = w[:i0][::-1]  # w[i0-1], w[i0-2], ...
+    vel[:i0] = (x0[2:] - dt * np.cumsum(behind, axis=0))[::-1]
+    pos[:i0] = (x0[:2] - np.cumsum(dt * vel[:i0][::-1] + dt ** 2 / 2.0 * behind, axis=0))[::-1]
+    return np.concatenate([pos, vel], axis=1)
+
+
 def _camera(data: SeaData) -> np.ndarray:
     """The camera's path as the fixes give it: the known velocity's path plus their mean offset."""
     if not data.velocity_known:
@@ -75,14 +91,7 @@ def resample(result: Any, cfg: Any, rng: np.random.Generator) -> SeaData:
     told = assumed(data, cfg)
     T, dt, i0 = data.steps, data.dt, int(first[0])
     w = rng.normal(0.0, told.sigma_acc * k["acceleration"], size=(T - 1, 2))
-    target = np.empty((T, 4))
-    target[i0] = state[i0]
-    for i in range(i0, T - 1):  # forwards, then backwards in time from the state the smoother held
-        target[i + 1, 2:] = target[i, 2:] + dt * w[i]
-        target[i + 1, :2] = target[i, :2] + dt * target[i, 2:] + dt ** 2 / 2.0 * w[i]
-    for i in range(i0, 0, -1):
-        target[i - 1, 2:] = target[i, 2:] - dt * w[i - 1]
-        target[i - 1, :2] = target[i, :2] - dt * target[i - 1, 2:] - dt ** 2 / 2.0 * w[i - 1]
+    target = _track(state[i0], i0, w, dt)
     camera = _camera(data)
     alpha, beta = geometry.angles(target[:, :2], camera, data.course, data.height)
     seen = np.asarray(data.seen, bool)
