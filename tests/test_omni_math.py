@@ -419,12 +419,12 @@ def test_the_gate_keeps_misread_barcodes_out_of_the_graph():
     """Four misread bearings pull the ungated smoother metres off the truth; with the gate
     (``nis_gate`` 0.99, as the MRCLAM scenario has it) the answer stays within a centimetre of
     the one without the misreads, and the gate leaves out about 1 % of the good bearings."""
-    cfg = OmniConfig(duration=90.0, nis_gate=0.99, lm_every=20.0).validate()
+    cfg = OmniConfig(duration=90.0, nis_gate=0.99, lm_every=20.0, batch_starts="grown").validate()
     data = simulate(cfg, np.random.default_rng(3))
     bad, changed = _misread(data, 50.0)
     assert len(changed) == 4
     clean, gated = graph.batch(data, cfg), graph.batch(bad, cfg)
-    ungated = graph.batch(bad, OmniConfig(duration=90.0, nis_gate=0.0, lm_every=20.0).validate())
+    ungated = graph.batch(bad, OmniConfig(duration=90.0, nis_gate=0.0, lm_every=20.0, batch_starts="grown").validate())
 
     def rms(est):
         e = evaluate.pose_errors(data.truth[est.steps], est.pose)
@@ -441,7 +441,7 @@ def test_the_batch_regates_against_its_own_answer():
     against its smoothed answer. Handed a causal verdict that left out 40 good bearings besides
     the four misreads (as one made while the prediction was off does), it takes the good ones
     back, keeps the misreads out, and ends where it ends from the grown graph's own verdict."""
-    cfg = OmniConfig(duration=90.0, nis_gate=0.99, lm_every=20.0).validate()
+    cfg = OmniConfig(duration=90.0, nis_gate=0.99, lm_every=20.0, batch_starts="grown").validate()
     data = simulate(cfg, np.random.default_rng(3))
     bad, changed = _misread(data, 50.0)
     kf = graph.keyframes(bad, cfg)

@@ -34,7 +34,8 @@ class SlamEstimate:
     truth-free NIS, whiteness and likelihood read them). ``smoothed (E, 3)``: a smoother's whole
     trajectory as it holds it at the end (iSAM2's final estimate, at ``steps``), beside ``pose``,
     what it knew at each step. ``start``: where an estimator that can start from more than one
-    place started (the batch's winner by its cost on the data), ``start_costs`` each start's cost.
+    place started (the batch's winner by its cost on the data), ``start_costs`` the cost of each it
+    solved (the batch solves the next start only while the last fit fails its test).
     ``residuals``: a smoother's residuals at its answer by group with their redundancies
     (:class:`~workbench.estimation.consistency.Residuals`: its truth-free diagnosis reads them).
     """
@@ -50,6 +51,7 @@ class SlamEstimate:
     init_step: np.ndarray | None = None
     seconds: float = 0.0
     failures: int = 0
+    lm_passes: int = 0  # iSAM2's damped whole-graph LM passes (run-aways; every ``lm_every`` s where set)
     gated_bearings: np.ndarray | None = None  # indices of the bearings a gate left out
     attempts: list = field(default_factory=list)
     smoothed: np.ndarray | None = None  # (E, 3) the whole trajectory as held at the end

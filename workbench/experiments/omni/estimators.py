@@ -52,10 +52,8 @@ def batch(data: OmniData, cfg: OmniConfig, ctx: RunContext) -> SlamEstimate:
     from workbench.experiments.omni import graph
 
     kf = keyframes(data, cfg, ctx)
-    others = {"isam2": isam2, "ekf": ekf_clone}
-    starts = [graph.start_from(name, others[name](data, cfg, ctx), data, kf) if name in others
-              else graph.own_start(data, cfg, kf, name) for name in cfg.starts]
-    return graph.batch(data, cfg, kf, starts)
+    made = {"isam2": lambda: isam2(data, cfg, ctx), "ekf": lambda: ekf_clone(data, cfg, ctx)}
+    return graph.batch(data, cfg, kf, graph.named_starts(data, cfg, kf, made))
 
 
 TABLE: dict[str, Estimator] = table(

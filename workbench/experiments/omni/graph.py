@@ -12,13 +12,13 @@ place only leaves the linear system indeterminate.
 
 * ``isam2``: iSAM2 (QR factorisation, relinearisation threshold ``relin_threshold``) updated
   at every keyframe; its newest pose at that time is what a causal estimator knows, so it
-  is comparable to the filter's. With ``lm_every > 0`` (MRCLAM) a Levenberg-Marquardt pass
-  over the graph so far, every ``lm_every`` seconds and whenever a landmark enters, restarts
-  it (:class:`_Incremental` says why).
+  is comparable to the filter's. A damped Levenberg-Marquardt pass over the graph so far only
+  where an update runs away; with ``lm_every > 0`` also every ``lm_every`` seconds and whenever
+  a landmark enters (:class:`_Incremental` says why that is no longer the default).
 * ``gtsam-batch``: Levenberg-Marquardt over the whole run, marginal covariances for every
-  pose. Started from dead reckoning (and landmarks triangulated from it), or with
-  ``lm_every > 0`` from the graph grown keyframe by keyframe with those LM passes, or from a
-  given initial estimate.
+  pose. Started from the starts ``--batch-starts`` names in turn (dead reckoning with
+  landmarks triangulated from it, iSAM2's or the EKF's answer, or with ``lm_every > 0`` the
+  graph grown keyframe by keyframe with those LM passes) until one's fit passes its test.
 
 Covariances are returned in the world frame (``x, y, phi``) like the filter's:
 ``C_world = J C_body J'``, ``J = diag(R(phi), 1)``.
@@ -324,8 +324,22 @@ class _Incremental:
     damped and converges from the same start. Its start for the poses added since the last
     pass is the last pass's answer carried on with the odometry (not iSAM2's estimate
     meanwhile, which may have run away); iSAM2 is then rebuilt, linearised at LM's answer.
-    Between passes iSAM2 runs as usual, so its newest pose stays the causal estimate. With
-    ``lm_every = 0`` (the paper's simulation) there are no passes and iSAM2 runs alone.
+    Between passes iSAM2 runs as usual, so its newest pose stays the causal estimate.
+
+    Why ``lm_every = 0`` is now the default everywhere (issue 36): each pass is a solve of the
+    whole graph so far, so a log twice as long cost 4.4x (a 14,000-pose drive: 24 of its 29 s in
+    passes, measured). The run-aways the passes stopped came from the gate and the held rays,
+    which followed the chain of the last pass carried on by the odometry: without passes that
+    chain drifts, good bearings fail the gate, and landmarks enter from stale poses (MRCLAM 6
+    robot 3: 2,516 bearings gated, 26 s of passes at run-aways). Without passes the graph
+    follows iSAM2 itself (:meth:`_follow`, :meth:`_pose_of`, :meth:`_point`): the gate predicts
+    from iSAM2's newest pose and its marginal, the landmark's estimate and marginal (re-read
+    every ``POINT_REFRESH`` s), and held rays are placed from iSAM2's current poses. MRCLAM 6
+    robots 1-5 then end as close to the truth as with passes or closer (iSAM2 0.27-0.49 m,
+    the batch unchanged to 1 cm) in 2-4x less time; a pass is left only where an update runs
+    away (:func:`_jumped`) or throws. ``ISAM2DoglegParams`` (a trust region inside iSAM2) was
+    tried instead: its updates cost 12x the Gauss-Newton ones on robot 3 (15 of 19 s), its step
+    reading the whole tree's gradient, so it is not used.
 
     Whenever iSAM2 throws (an indeterminate system: the symptom of a run-away, in the paper's
     simulation too, where it ended some seeds' runs), there is an LM pass at once and the
@@ -366,11 +380,16 @@ class _Incremental:
         self.chain_cov = np.asarray(data.start_cov, float).copy()
         self.point_cov: dict[int, np.ndarray] = {}
         self.rejected: set[tuple[int, int]] = set()
+        # without LM passes the gate and the held rays follow iSAM2's own estimate (:meth:`_follow`)
+        self.follow = solver and cfg.lm_every == 0.0
+        self.point_read: dict[int, float] = {}   # when each landmark's marginal was last read (follow)
+        self.newest_cov: np.ndarray | None = None
 
     def step(self, e: int) -> np.ndarray:
         """Add keyframe ``e`` (its odometry, its bearings, the landmarks it completes); update.
         Returns the newest pose's estimate."""
         kf, marks, cfg = self.kf, self.marks, self.cfg
+        self.newest_cov = None
         motion, pose_value = gtsam.NonlinearFactorGraph(), gtsam.Values()
         if e == 0:
             motion.add(_prior(self.data))
@@ -392,8 +411,7 @@ class _Incremental:
             if marks.inserted[lm] and not self._consistent(lm, b, sigma):
                 self.rejected.add((e, lm))
                 continue
-            factors, point = marks.observe(e, lm, b, self.known.__getitem__, tolerance=self._tolerance(),
-                                           sigma=sigma)
+            factors, point = marks.observe(e, lm, b, self._pose_of, tolerance=self._tolerance(), sigma=sigma)
             for factor in factors:
                 sights.add(factor)
             if point is not None:
@@ -441,12 +459,47 @@ class _Incremental:
                     self.isam = None
         if self.isam is None:
             self.current = self.chain
+        elif self.follow and not threw:
+            self._follow(e)
         self.known[e] = _pose(self.current)
         for lm in entered:
             self.init_step[lm] = kf.steps[e]
         return self.known[e]
 
     runaways = 0
+
+    POINT_REFRESH = 10.0
+    """s: how old a landmark's marginal may be before the gate reads it again from iSAM2 (follow)."""
+
+    def _pose_of(self, k: int) -> np.ndarray:
+        """Keyframe ``k``'s pose as the graph holds it now: iSAM2's estimate where it follows
+        iSAM2 (a held ray's pose corrected since it was newest), else as last estimated."""
+        if self.follow and self.isam is not None and k <= self.done:
+            return _pose(self.isam.calculateEstimatePose2(X(k)))
+        return self.known[k]
+
+    def _follow(self, e: int) -> None:
+        """After an update without LM passes: the gate's prediction starts from iSAM2's newest
+        pose and its marginal (not the odometry chain since the last pass, which never comes)."""
+        self.chain = self.current
+        cov = _marginal(self.isam, X(e), 3)
+        self.newest_cov = cov
+        if np.isfinite(cov).all():
+            self.chain_cov = to_world(cov[None], np.array([self.current.theta()]))[0]
+
+    def _point(self, lm: int) -> tuple[np.ndarray, np.ndarray | None]:
+        """A landmark's point and marginal for the gate: iSAM2's estimate now and its marginal
+        read at most ``POINT_REFRESH`` s ago where the graph follows iSAM2, else the last LM pass's."""
+        if not (self.follow and self.isam is not None):
+            return self.points[lm], self.point_cov.get(lm)
+        t = float(self.data.t[self.kf.steps[self.done]]) if self.done >= 0 else 0.0
+        if t - self.point_read.get(lm, -math.inf) >= self.POINT_REFRESH:
+            cov = _marginal(self.isam, L(lm), 2)
+            if np.isfinite(cov).all():
+                self.point_cov[lm] = cov
+            self.point_read[lm] = t
+        point = self.isam.calculateEstimatePoint2(L(lm))
+        return np.asarray(point, float), self.point_cov.get(lm)
 
     def _tolerance(self) -> float:
         """How far (rad) a held ray may be from a landmark's starting point (:func:`consensus`):
@@ -468,8 +521,9 @@ class _Incremental:
         those four outweighs turning the whole trajectory by 50 deg, and LM does (measured)."""
         if not math.isfinite(self.gate):
             return True
-        r2, s = _bearing_test(_pose(self.chain), self.chain_cov, self.points[lm], self.point_cov.get(lm),
-                              bearing, self.data.sigma_bearing if sigma is None else sigma)
+        point, point_cov = self._point(lm)
+        r2, s = _bearing_test(_pose(self.chain), self.chain_cov, point, point_cov, bearing,
+                              self.data.sigma_bearing if sigma is None else sigma)
         return r2 <= self.threshold(s) * s
 
     def _marginals(self, result: gtsam.Values, e: int) -> None:
@@ -532,14 +586,21 @@ class _Incremental:
         return poses, points
 
 
+MAP_FULL = 10
+"""Every how many map readings :func:`isam2` reads every landmark's marginal, not only the seen ones'."""
+
+
 def isam2(data: OmniData, cfg: OmniConfig, kf: Keyframes | None = None, map_every: float = math.inf
           ) -> SlamEstimate:
     """iSAM2, one update per keyframe; the newest pose and its marginal at every keyframe
     (causal, held to the filtering bound), and its whole trajectory at the end (``smoothed``:
     iSAM2 is a smoother; this is the answer batch LM is compared with).
 
-    The map (means and marginals) is read every ``map_every`` seconds and at the end:
-    landmark marginals cost more than the update itself, so Monte Carlo runs read it once.
+    The map is read every ``map_every`` seconds and at the end: every landmark's mean, and the
+    marginals of those seen since the last reading (every ``MAP_FULL``-th reading and the last:
+    all of them; the others' are carried). Landmark marginals cost more than the update itself:
+    read all every second, they took 13 of the 17 s of a 1,400 s log (measured), a cost of the
+    log's length times its map's size; Monte Carlo runs read the map once, at the end.
     """
     kf = kf or keyframes(data, cfg)
     inc = _Incremental(data, cfg, kf)
@@ -548,23 +609,31 @@ def isam2(data: OmniData, cfg: OmniConfig, kf: Keyframes | None = None, map_ever
     covs = np.empty((E, 3, 3))
     map_steps, map_mean, map_cov = [], [], []
     last_map = -math.inf
+    seen = np.zeros(n_lm, bool)
+    cov = np.full((n_lm, 2, 2), np.nan)
     for e in range(E):
         poses[e] = inc.step(e)
-        covs[e] = _marginal(inc.isam, X(e), 3)
+        covs[e] = inc.newest_cov if inc.newest_cov is not None else _marginal(inc.isam, X(e), 3)
+        seen[kf.bearings[e][0]] = True
         if data.t[kf.steps[e]] - last_map >= map_every or e == E - 1:
             last_map = data.t[kf.steps[e]]
+            full = e == E - 1 or len(map_steps) % MAP_FULL == 0
             mean = np.full((n_lm, 2), np.nan)
-            cov = np.full((n_lm, 2, 2), np.nan)
+            cov = cov.copy()
             held = inc.estimate()[1] if inc.isam is None else None  # iSAM2 gave up: the LM passes'
             for lm in inc.points:
                 mean[lm] = held[lm] if held is not None else inc.isam.calculateEstimatePoint2(L(lm))
-                cov[lm] = _marginal(inc.isam, L(lm), 2)
+                if full or seen[lm] or not np.isfinite(cov[lm]).all():
+                    cov[lm] = _marginal(inc.isam, L(lm), 2)
+            cov[~np.isfinite(mean[:, 0])] = np.nan
+            seen[:] = False
             map_steps.append(kf.steps[e])
             map_mean.append(mean)
             map_cov.append(cov)
     return SlamEstimate("isam2", kf.steps.copy(), poses, to_world(covs, poses[:, 2]), np.array(map_steps),
                         np.array(map_mean), np.array(map_cov), inc.first_seen, inc.init_step,
-                        failures=inc.failures, gated_bearings=gated_indices(data, kf, inc.rejected),
+                        failures=inc.failures, lm_passes=inc.passes,
+                        gated_bearings=gated_indices(data, kf, inc.rejected),
                         smoothed=inc.estimate()[0], residuals=_held_residuals(data, cfg, kf, inc))
 
 
@@ -592,12 +661,14 @@ def _marginal(isam: gtsam.ISAM2 | None, key: int, dim: int) -> np.ndarray:
 
 
 def batch(data: OmniData, cfg: OmniConfig, kf: Keyframes | None = None,
-          starts: list[Start] | None = None) -> SlamEstimate:
+          starts: list[Start | Callable[[], Start]] | None = None) -> SlamEstimate:
     """Levenberg-Marquardt over the whole run; marginals for every pose.
 
-    It starts from each of ``starts`` (default: :func:`own_start`, the one ``cfg`` names
-    first) and keeps the solution of the lowest :func:`robust_cost` on the data (never the
-    truth); ``start`` / ``start_costs`` in the answer say which won and what each cost. The
+    It starts from ``starts`` (default: those ``cfg`` names, :func:`named_starts`) in the order
+    given, solving the next only while the last fit fails its chi-square test
+    (:func:`_best_start`), and keeps the solution of the lowest :func:`robust_cost` on the data
+    (never the truth); ``start`` / ``start_costs`` in the answer say which won and what each one
+    solved cost. The
     starts: dead reckoning with the landmarks triangulated from it (``odometry``); the graph
     grown keyframe by keyframe with an LM pass every ``lm_every`` seconds and at every new
     landmark (``grown``: :class:`_Incremental` without iSAM2); another estimator's answer on the
@@ -616,10 +687,9 @@ def batch(data: OmniData, cfg: OmniConfig, kf: Keyframes | None = None,
     """
     kf = kf or keyframes(data, cfg)
     E = len(kf.steps)
-    starts = starts or [own_start(data, cfg, kf)]
-    solved = [_solve(data, cfg, kf, s) for s in starts]
-    costs = [robust_cost(data, cfg, kf, result, marks.inserted) for result, marks, *_ in solved]
-    won = int(np.argmin(costs))  # the first listed on a tie
+    starts = list(starts or named_starts(data, cfg, kf))
+    solved, costs = _best_start(data, cfg, kf, starts)
+    won = min(solved, key=lambda i: (costs[i], i))  # the first listed on a tie
     result, marks, rejected, first_seen, init_step = solved[won]
     graph = _batch_graph(data, kf, marks, rejected)
     covs, lm_cov = _batch_marginals(graph, result, E, marks.inserted)
@@ -639,7 +709,7 @@ def batch(data: OmniData, cfg: OmniConfig, kf: Keyframes | None = None,
     return SlamEstimate("gtsam-batch", kf.steps.copy(), poses, to_world(covs, poses[:, 2]),
                         np.array([kf.steps[-1]]), mean[None], lm_cov[None], first_seen, init_step,
                         gated_bearings=gated_indices(data, kf, rejected), start=starts[won].name,
-                        start_costs={s.name: float(c) for s, c in zip(starts, costs, strict=True)},
+                        start_costs={starts[i].name: float(c) for i, c in costs.items()},
                         fit=fit(graph, result, E, int(marks.inserted.sum())),
                         residuals=residuals.of_graph(graph, result, kf, marks.inserted, rejected, cfg.nis_gate or None))
 
@@ -698,6 +768,29 @@ def own_start(data: OmniData, cfg: OmniConfig, kf: Keyframes, name: str | None =
     return Start("odometry", kf.dead_reckoning, np.full((len(data.landmarks), 2), np.nan), set())
 
 
+def named_starts(data: OmniData, cfg: OmniConfig, kf: Keyframes,
+                 made: dict[str, Callable[[], SlamEstimate]] | None = None) -> list[Callable[[], Start]]:
+    """The starts ``--batch-starts`` names, in order, each as a function that makes it (the batch
+    makes only those it solves): the batch's own (:func:`own_start`) and other estimators' answers
+    (:func:`start_from`), those made by ``made[name]()`` where given (a run's shared estimate),
+    else run here."""
+    def run(name: str) -> SlamEstimate:
+        if made and name in made:
+            return made[name]()
+        if name == "isam2":
+            return isam2(data, cfg, kf)
+        from workbench.experiments.omni import ekf
+
+        return ekf.run(data, cfg, "clone", "ekf", False)
+
+    def make(name: str) -> Callable[[], Start]:
+        if name in ("isam2", "ekf"):
+            return lambda: start_from(name, run(name), data, kf)
+        return lambda: own_start(data, cfg, kf, name)
+
+    return [make(n) for n in cfg.starts]
+
+
 def start_from(name: str, est: SlamEstimate, data: OmniData, kf: Keyframes) -> Start:
     """A start from another estimator's answer on the same data: its whole trajectory as it holds
     it at the end where it keeps one (``smoothed``), else its poses, at the keyframes; its final
@@ -714,8 +807,46 @@ def start_from(name: str, est: SlamEstimate, data: OmniData, kf: Keyframes) -> S
     return Start(name, poses.copy(), est.final_map.copy(), rejected)
 
 
-def _solve(data: OmniData, cfg: OmniConfig, kf: Keyframes, start: Start):
-    """LM over the whole run from ``start``: ``(result, landmarks, rejected, first_seen, init_step)``."""
+def _best_start(data: OmniData, cfg: OmniConfig, kf: Keyframes, starts: list[Start | Callable[[], Start]]
+                ) -> tuple[dict[int, tuple], dict[int, float]]:
+    """LM from the starts in the order given (one given as a function is made when it is reached;
+    ``starts`` then holds it) until one ends with a fit its chi-square does not
+    reject (:func:`plausible`); the rest are not solved. Returns the solved ones and their
+    :func:`robust_cost`, by index.
+
+    Why: solving from every start cost a full LM solve of the whole run each (two of a long log's
+    three solves, measured), though a fit that passes its test needs no second opinion. Where it
+    fails (a wrong basin: a mirrored trajectory's is many times its degrees of freedom; or a wrong
+    noise model), the next start is solved too and the lower cost on the data kept, as before.
+    """
+    solved: dict[int, tuple] = {}
+    costs: dict[int, float] = {}
+    for i, start in enumerate(starts):
+        if callable(start):  # made only when it is needed
+            start = starts[i] = start()
+        values, marks, rejected, first_seen, init_step = _prepare(data, cfg, kf, start)
+        graph = _batch_graph(data, kf, marks, rejected)
+        result = gtsam.LevenbergMarquardtOptimizer(graph, values, _lm_params(100)).optimize()
+        solved[i] = (result, marks, rejected, first_seen, init_step)
+        costs[i] = robust_cost(data, cfg, kf, result, marks.inserted)
+        if plausible(*fit(graph, result, len(kf.steps), int(marks.inserted.sum()))):
+            break
+    return solved, costs
+
+
+FIT_TEST = 0.999
+"""The probability at which :func:`plausible` rejects a least-squares fit."""
+
+
+def plausible(chi2: float, dof: int) -> bool:
+    """Whether a fit's chi-square (:func:`fit`) is under its ``FIT_TEST`` quantile (a fit far under
+    it is a noise assumed too wide, not a wrong basin: accepted)."""
+    return dof > 0 and chi2 <= chi2_quantile(FIT_TEST, dof)
+
+
+def _prepare(data: OmniData, cfg: OmniConfig, kf: Keyframes, start: Start):
+    """The batch's values at ``start`` (its poses, the landmarks it places or triangulated from
+    them): ``(values, landmarks, rejected, first_seen, init_step)``."""
     n_lm, E = len(data.landmarks), len(kf.steps)
     marks = _Landmarks(n_lm, data.sigma_bearing, math.radians(cfg.graph_parallax_deg), cfg.huber)
     values = gtsam.Values()
@@ -737,9 +868,7 @@ def _solve(data: OmniData, cfg: OmniConfig, kf: Keyframes, start: Start):
                 continue
             values.insert(L(lm), point)
             init_step[lm] = kf.steps[e]
-    graph = _batch_graph(data, kf, marks, start.rejected)
-    result = gtsam.LevenbergMarquardtOptimizer(graph, values, _lm_params(100)).optimize()
-    return result, marks, set(start.rejected), first_seen, init_step
+    return values, marks, set(start.rejected), first_seen, init_step
 
 
 def outlier_rate(cfg: OmniConfig) -> float:
