@@ -50,3 +50,26 @@ def test_a_log_twice_as_long_costs_about_twice_as_much(tmp_path):
             assert est.lm_passes <= 2, est.lm_passes  # only at a run-away, not every 20 s
     ratio = min(seconds[2]) / min(seconds[1])
     assert ratio < 2.5, (seconds, ratio)
+
+
+def test_isam2_following_itself_takes_a_landmark_named_twice_at_one_keyframe(tmp_path):
+    """With 10 % of the bearings given another tree's id, a keyframe can hold two bearings of one
+    landmark, the first making it enter: the gate then tests the second against the landmark
+    before iSAM2 holds it (it raised from the Bayes tree before this was handled). A misread is
+    left out far more often than a good bearing (measured: 46 % against 5.6 %; the batch re-gates
+    them against its whole answer), and the whole run stays within 2 m of the truth (1.1 m)."""
+    f = faults.Faults(poses=3000, misread=0.10, seed=0)
+    folder = faults.write(tmp_path / "misread", f)[0].parent
+    cfg = api.configure("omni", "log", data=str(folder))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        data = api.get("omni").dataset(cfg, 0)
+    est = graph.isam2(data, cfg)
+    wrong = faults.simulate(f)
+    misread = np.flatnonzero(wrong["ids"] != wrong["true_ids"])
+    out = np.isin(np.arange(len(wrong["ids"])), est.gated_bearings)
+    good = np.ones(len(out), bool)
+    good[misread] = False
+    d = est.smoothed[:, :2] - data.truth[est.steps, :2]
+    rms = float(np.sqrt(np.mean(np.sum(d**2, axis=1))))
+    assert out[misread].mean() > 5 * out[good].mean() and rms < 2.0, (out[misread].mean(), out[good].mean(), rms)

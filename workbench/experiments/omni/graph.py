@@ -474,7 +474,7 @@ class _Incremental:
     def _pose_of(self, k: int) -> np.ndarray:
         """Keyframe ``k``'s pose as the graph holds it now: iSAM2's estimate where it follows
         iSAM2 (a held ray's pose corrected since it was newest), else as last estimated."""
-        if self.follow and self.isam is not None and k <= self.done:
+        if self.follow and self.isam is not None and k <= self.done and self.isam.valueExists(X(k)):
             return _pose(self.isam.calculateEstimatePose2(X(k)))
         return self.known[k]
 
@@ -490,8 +490,8 @@ class _Incremental:
     def _point(self, lm: int) -> tuple[np.ndarray, np.ndarray | None]:
         """A landmark's point and marginal for the gate: iSAM2's estimate now and its marginal
         read at most ``POINT_REFRESH`` s ago where the graph follows iSAM2, else the last LM pass's."""
-        if not (self.follow and self.isam is not None):
-            return self.points[lm], self.point_cov.get(lm)
+        if not (self.follow and self.isam is not None and self.isam.valueExists(L(lm))):
+            return self.points[lm], self.point_cov.get(lm)  # (or it entered at this keyframe)
         t = float(self.data.t[self.kf.steps[self.done]]) if self.done >= 0 else 0.0
         if t - self.point_read.get(lm, -math.inf) >= self.POINT_REFRESH:
             cov = _marginal(self.isam, L(lm), 2)
