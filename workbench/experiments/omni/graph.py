@@ -147,8 +147,8 @@ class _Landmarks:
         if self.inserted[lm]:
             return [self.factor(e, lm, bearing)], None
         self.obs[lm].append((e, bearing))
-        if len(self.obs[lm]) < 2:
-            return [], None
+        if len(self.obs[lm]) < (3 if preset is None and math.isfinite(tolerance) else 2):
+            return [], None  # with a gate, a landmark waits for a third ray: two always meet
         if preset is None and math.isfinite(tolerance) and len(self.obs[lm]) >= 3:
             (first, b_first), (newest, b_newest) = self.obs[lm][0], self.obs[lm][-1]
             if _parallax_ok(pose_of(first), b_first, pose_of(newest), b_newest, self.min_parallax) is None:
