@@ -531,9 +531,17 @@ class _Incremental:
         those four outweighs turning the whole trajectory by 50 deg, and LM does (measured)."""
         if not math.isfinite(self.gate):
             return True
+        sigma = self.data.sigma_bearing if sigma is None else sigma
+        if self.follow and self.isam is not None and self.isam.valueExists(L(lm)):
+            # first without the landmark's marginal (the narrowest test): a bearing it passes
+            # passes with any; only one it fails needs the marginal, which costs a Bayes-tree
+            # walk (reading it for every bearing took 0.7 of iSAM2's 5 s on a 14,000-pose drive)
+            point = np.asarray(self.isam.calculateEstimatePoint2(L(lm)), float)
+            r2, s = _bearing_test(_pose(self.chain), self.chain_cov, point, None, bearing, sigma)
+            if r2 <= self.threshold(s) * s:
+                return True
         point, point_cov = self._point(lm)
-        r2, s = _bearing_test(_pose(self.chain), self.chain_cov, point, point_cov, bearing,
-                              self.data.sigma_bearing if sigma is None else sigma)
+        r2, s = _bearing_test(_pose(self.chain), self.chain_cov, point, point_cov, bearing, sigma)
         return r2 <= self.threshold(s) * s
 
     def _marginals(self, result: gtsam.Values, e: int) -> None:
