@@ -262,7 +262,8 @@ OPTIONS: tuple[Option, ...] = (
            "time: their mean, with the variance of not knowing when) | hold (the earlier one).", str),
     Option("noise_per_second", "Odometry noise as densities or per step.", bool,
            switch="--noise-per-second/--noise-per-step"),
-    Option("lm_every", "GTSAM: a damped LM pass every this many s (0 = off)."),
+    Option("lm_every", "GTSAM: a damped whole-graph LM pass every this many s besides those at a run-away "
+           "(0, the default: only at a run-away; a period makes the cost grow as the log's square)."),
     Option("ekf_init", "EKF landmark init: ut (the paper's gate) | linear.", str),
     Option("ekf_second_order", "EKF: second-order bearing terms in the update.", bool,
            switch="--second-order/--first-order"),
