@@ -114,7 +114,6 @@ def into_diagnosis(found: dict, entry: Mapping[str, Any]) -> None:
         found["reason"] = f"{found['reason']}; {said}"
 
 
-
 def _nees(experiment: str, data: Any, est: Any, ctx: MetricContext) -> Values | None:
     found = ctx.shared("bootstrap", lambda: resampled(experiment, ctx))
     return found.get(ctx.name)

@@ -91,18 +91,13 @@ def run(data: OmniData, cfg: OmniConfig, kf: graph.Keyframes, lag: float = LAG, 
     seen = np.zeros(n_lm, bool)
 
     def snapshot(e: int, last: bool = False) -> None:
-        """The map now: every landmark's mean; the marginals of those seen since the last
-        snapshot, every ``graph.MAP_FULL``-th snapshot and the last all of them (the others'
-        carried: read for all every second, they took 29 of 30 s on a 7,000-pose drive)."""
-        full = last or len(map_steps) % graph.MAP_FULL == 0
-        mean = np.full((n_lm, 2), np.nan)
-        cov = map_cov[-1].copy() if map_cov else np.full((n_lm, 2, 2), np.nan)
-        for lm in np.flatnonzero(marks.inserted):
-            mean[lm] = fls.calculateEstimatePoint2(L(int(lm)))
-            if full or seen[lm] or not np.isfinite(cov[lm]).all():
-                cov[lm] = fls.marginalCovariance(L(int(lm)))
-        cov[~marks.inserted] = np.nan
-        seen[:] = False
+        """The map now (:func:`.graph.read_map`: the marginals of the landmarks seen since the last
+        snapshot; every ``graph.MAP_FULL``-th snapshot and the last, all of them)."""
+        previous = map_cov[-1] if map_cov else np.full((n_lm, 2, 2), np.nan)
+        mean, cov = graph.read_map(np.flatnonzero(marks.inserted).tolist(), previous, seen,
+                                   last or len(map_steps) % graph.MAP_FULL == 0,
+                                   lambda lm: fls.calculateEstimatePoint2(L(lm)),
+                                   lambda lm: fls.marginalCovariance(L(lm)))
         map_steps.append(steps[e])
         map_mean.append(mean)
         map_cov.append(cov)

@@ -26,6 +26,7 @@ Covariances are returned in the world frame (``x, y, phi``) like the filter's:
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -333,8 +334,9 @@ class _Incremental:
     chain drifts, good bearings fail the gate, and landmarks enter from stale poses (MRCLAM 6
     robot 3: 2,516 bearings gated, 26 s of passes at run-aways). Without passes the graph
     follows iSAM2 itself (:meth:`_follow`, :meth:`_pose_of`, :meth:`_point`): the gate predicts
-    from iSAM2's newest pose and its marginal, the landmark's estimate and marginal (re-read
-    every ``POINT_REFRESH`` s), and held rays are placed from iSAM2's current poses. MRCLAM 6
+    from iSAM2's newest pose and its marginal, the landmark's estimate and marginal (read, at
+    most every ``POINT_REFRESH`` s, for a bearing that fails without it), and held rays are
+    placed from iSAM2's current poses. MRCLAM 6
     robots 1-5 then end as close to the truth as with passes or closer (iSAM2 0.27-0.49 m,
     the batch unchanged to 1 cm) in 2-4x less time; a pass is left only where an update runs
     away (:func:`_jumped`) or throws. ``ISAM2DoglegParams`` (a trust region inside iSAM2) was
@@ -497,19 +499,28 @@ class _Incremental:
         if np.isfinite(cov).all():
             self.chain_cov = to_world(cov[None], np.array([self.current.theta()]))[0]
 
-    def _point(self, lm: int) -> tuple[np.ndarray, np.ndarray | None]:
-        """A landmark's point and marginal for the gate: iSAM2's estimate now and its marginal
-        read at most ``POINT_REFRESH`` s ago where the graph follows iSAM2, else the last LM pass's."""
-        if not (self.follow and self.isam is not None and self.isam.valueExists(L(lm))):
-            return self.points[lm], self.point_cov.get(lm)  # (or it entered at this keyframe)
-        t = float(self.data.t[self.kf.steps[self.done]]) if self.done >= 0 else 0.0
-        if t - self.point_read.get(lm, -math.inf) >= self.POINT_REFRESH:
-            cov = _marginal(self.isam, L(lm), 2)
-            if np.isfinite(cov).all():
-                self.point_cov[lm] = cov
-            self.point_read[lm] = t
-        point = self.isam.calculateEstimatePoint2(L(lm))
-        return np.asarray(point, float), self.point_cov.get(lm)
+    def _holds(self, lm: int) -> bool:
+        """Whether the graph follows iSAM2 and iSAM2 holds landmark ``lm``."""
+        return self.follow and self.isam is not None and self.isam.valueExists(L(lm))
+
+    def _point(self, lm: int) -> tuple[np.ndarray, Callable[[], np.ndarray | None]]:
+        """A landmark's point for the gate and how to get its marginal: where the graph follows
+        iSAM2 (and iSAM2 holds it), iSAM2's estimate now and its marginal as read at most
+        ``POINT_REFRESH`` s ago (read only when asked: a Bayes-tree walk); else the point it entered
+        at or the last LM pass's, with that pass's marginal."""
+        if not self._holds(lm):
+            return self.points[lm], lambda: self.point_cov.get(lm)  # (or it entered at this keyframe)
+
+        def marginal() -> np.ndarray | None:
+            t = float(self.data.t[self.kf.steps[self.done]]) if self.done >= 0 else 0.0
+            if t - self.point_read.get(lm, -math.inf) >= self.POINT_REFRESH:
+                cov = _marginal(self.isam, L(lm), 2)
+                if np.isfinite(cov).all():
+                    self.point_cov[lm] = cov
+                self.point_read[lm] = t
+            return self.point_cov.get(lm)
+
+        return np.asarray(self.isam.calculateEstimatePoint2(L(lm)), float), marginal
 
     def _tolerance(self) -> float:
         """How far (rad) a held ray may be from a landmark's starting point (:func:`consensus`):
@@ -532,16 +543,16 @@ class _Incremental:
         if not math.isfinite(self.gate):
             return True
         sigma = self.data.sigma_bearing if sigma is None else sigma
-        if self.follow and self.isam is not None and self.isam.valueExists(L(lm)):
-            # first without the landmark's marginal (the narrowest test): a bearing it passes
-            # passes with any; only one it fails needs the marginal, which costs a Bayes-tree
-            # walk (reading it for every bearing took 0.7 of iSAM2's 5 s on a 14,000-pose drive)
-            point = np.asarray(self.isam.calculateEstimatePoint2(L(lm)), float)
-            r2, s = _bearing_test(_pose(self.chain), self.chain_cov, point, None, bearing, sigma)
+        point, marginal = self._point(lm)
+        pose = _pose(self.chain)
+        if self._holds(lm):
+            # first without the landmark's marginal (the narrowest test): a bearing it passes passes
+            # with any; only one it fails needs the marginal, a Bayes-tree walk (reading it for every
+            # bearing took 0.7 of iSAM2's 5 s on a 14,000-pose drive)
+            r2, s = _bearing_test(pose, self.chain_cov, point, None, bearing, sigma)
             if r2 <= self.threshold(s) * s:
                 return True
-        point, point_cov = self._point(lm)
-        r2, s = _bearing_test(_pose(self.chain), self.chain_cov, point, point_cov, bearing, sigma)
+        r2, s = _bearing_test(pose, self.chain_cov, point, marginal(), bearing, sigma)
         return r2 <= self.threshold(s) * s
 
     def _marginals(self, result: gtsam.Values, e: int) -> None:
@@ -593,10 +604,33 @@ class _Incremental:
             self.isam, self.current = isam, current
         return True
 
+    FINAL_SOLVES = 3
+    """Full relinearisations and solves of iSAM2 at the end of the log (:meth:`finish`)."""
+
+    def finish(self) -> None:
+        """At the end of the log: iSAM2 relinearised at every variable and solved in full,
+        ``FINAL_SOLVES`` times, as an iSAM2 user closes a run (``ISAM2UpdateParams`` with
+        ``force_relinearize`` and ``forceFullSolve``). Why: without LM passes, iSAM2's answer at the
+        end carries the lag of its thresholds (a variable relinearised only past 0.1, a
+        back-substitution stopped under 0.01): MRCLAM 6's stiff odometry then read 2.6-8.7 times
+        its sigma in the diagnosis where the batch's read 0.8-1.2; finished, iSAM2's answer is the
+        batch's to the figures' last digit (robots 1 and 4: 0.05-0.09 s, measured). The causal
+        estimates, read before, do not change."""
+        if self.isam is None:
+            return
+        params = gtsam.ISAM2UpdateParams()
+        params.force_relinearize = True
+        params.forceFullSolve = True
+        try:
+            for _ in range(self.FINAL_SOLVES):
+                self.isam.update(gtsam.NonlinearFactorGraph(), gtsam.Values(), params)
+        except RuntimeError:  # GTSAM's indeterminate system: the answer stays as it was held
+            pass
+
     def estimate(self) -> tuple[np.ndarray, np.ndarray]:
         """The whole trajectory ``(E, 3)`` and map ``(N, 2)`` (NaN: not in the graph) as the
         solver (or the last LM pass) has them now."""
-        values = self.start if self.isam is None else self.isam.calculateEstimate()
+        values = self.start if self.isam is None else self.isam.calculateBestEstimate()
         poses = np.array([_pose(values.atPose2(X(k))) for k in range(self.done + 1)])
         points = np.full((len(self.data.landmarks), 2), np.nan)
         for lm in self.points:
@@ -605,7 +639,27 @@ class _Incremental:
 
 
 MAP_FULL = 10
-"""Every how many map readings :func:`isam2` reads every landmark's marginal, not only the seen ones'."""
+"""Every how many map readings :func:`read_map` reads every landmark's marginal, not only the seen ones'."""
+
+
+def read_map(held: list[int], previous: np.ndarray, seen: np.ndarray, full: bool,
+             mean_of: Callable[[int], np.ndarray], cov_of: Callable[[int], np.ndarray]
+             ) -> tuple[np.ndarray, np.ndarray]:
+    """One reading of a smoother's map ``(N, 2)``, ``(N, 2, 2)``: the mean of every landmark ``held``;
+    the marginal of those ``seen`` since the last reading, of all where ``full``, and of any whose
+    ``previous`` one is not finite; the others' carried from ``previous``; NaN for what is not held.
+    ``seen`` is cleared. Why: landmark marginals cost more than an update (a Bayes-tree walk each);
+    read for the whole map every second, they took 13 of iSAM2's 17 s on a 1,400 s log and 29 of the
+    fixed-lag smoother's 30 s on a 7,000-pose drive (measured)."""
+    mean = np.full((len(previous), 2), np.nan)
+    cov = previous.copy()
+    for lm in held:
+        mean[lm] = mean_of(lm)
+        if full or seen[lm] or not np.isfinite(cov[lm]).all():
+            cov[lm] = cov_of(lm)
+    cov[~np.isfinite(mean[:, 0])] = np.nan
+    seen[:] = False
+    return mean, cov
 
 
 def isam2(data: OmniData, cfg: OmniConfig, kf: Keyframes | None = None, map_every: float = math.inf
@@ -614,11 +668,9 @@ def isam2(data: OmniData, cfg: OmniConfig, kf: Keyframes | None = None, map_ever
     (causal, held to the filtering bound), and its whole trajectory at the end (``smoothed``:
     iSAM2 is a smoother; this is the answer batch LM is compared with).
 
-    The map is read every ``map_every`` seconds and at the end: every landmark's mean, and the
-    marginals of those seen since the last reading (every ``MAP_FULL``-th reading and the last:
-    all of them; the others' are carried). Landmark marginals cost more than the update itself:
-    read all every second, they took 13 of the 17 s of a 1,400 s log (measured), a cost of the
-    log's length times its map's size; Monte Carlo runs read the map once, at the end.
+    The map is read every ``map_every`` seconds and at the end (:func:`read_map`: the marginals of
+    the landmarks seen since the last reading, all of them every ``MAP_FULL``-th reading and the
+    last); Monte Carlo runs read it once, at the end.
     """
     kf = kf or keyframes(data, cfg)
     inc = _Incremental(data, cfg, kf)
@@ -632,19 +684,17 @@ def isam2(data: OmniData, cfg: OmniConfig, kf: Keyframes | None = None, map_ever
     for e in range(E):
         poses[e] = inc.step(e)
         covs[e] = inc.newest_cov if inc.newest_cov is not None else _marginal(inc.isam, X(e), 3)
+        if e == E - 1:
+            inc.finish()
         seen[kf.bearings[e][0]] = True
         if data.t[kf.steps[e]] - last_map >= map_every or e == E - 1:
             last_map = data.t[kf.steps[e]]
-            full = e == E - 1 or len(map_steps) % MAP_FULL == 0
-            mean = np.full((n_lm, 2), np.nan)
-            cov = cov.copy()
-            held = inc.estimate()[1] if inc.isam is None else None  # iSAM2 gave up: the LM passes'
-            for lm in inc.points:
-                mean[lm] = held[lm] if held is not None else inc.isam.calculateEstimatePoint2(L(lm))
-                if full or seen[lm] or not np.isfinite(cov[lm]).all():
-                    cov[lm] = _marginal(inc.isam, L(lm), 2)
-            cov[~np.isfinite(mean[:, 0])] = np.nan
-            seen[:] = False
+            if inc.isam is None:  # iSAM2 gave up: the LM passes' map
+                mean_of = inc.estimate()[1].__getitem__
+            else:
+                mean_of = functools.partial(_point_of, inc.isam)
+            mean, cov = read_map(list(inc.points), cov, seen, e == E - 1 or len(map_steps) % MAP_FULL == 0,
+                                 mean_of, functools.partial(_landmark_marginal, inc.isam))
             map_steps.append(kf.steps[e])
             map_mean.append(mean)
             map_cov.append(cov)
@@ -660,12 +710,20 @@ def _held_residuals(data: OmniData, cfg: OmniConfig, kf: Keyframes, inc: _Increm
     its landmarks and the bearings it kept; None where it holds none."""
     if inc.isam is None:
         return None
-    values = inc.isam.calculateEstimate()
+    values = inc.isam.calculateBestEstimate()
     graph = _batch_graph(data, kf, inc.marks, inc.rejected)
     try:
         return residuals.of_graph(graph, values, kf, inc.marks.inserted, inc.rejected, cfg.nis_gate or None)
     except RuntimeError:  # a variable the graph holds that the answer does not
         return None
+
+
+def _point_of(isam: gtsam.ISAM2, lm: int) -> np.ndarray:
+    return isam.calculateEstimatePoint2(L(lm))
+
+
+def _landmark_marginal(isam: gtsam.ISAM2 | None, lm: int) -> np.ndarray:
+    return _marginal(isam, L(lm), 2)
 
 
 def _marginal(isam: gtsam.ISAM2 | None, key: int, dim: int) -> np.ndarray:
