@@ -26,6 +26,7 @@ Covariances are returned in the world frame (``x, y, phi``) like the filter's:
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import math
 from collections.abc import Callable
@@ -830,12 +831,17 @@ class Start:
     rejected: set[tuple[int, int]]
 
 
+GROWN_EVERY = 20.0
+"""s: the grown start's LM period where ``lm_every`` is 0 (iSAM2 without passes)."""
+
+
 def own_start(data: OmniData, cfg: OmniConfig, kf: Keyframes, name: str | None = None) -> Start:
     """The batch's own start ``name`` (default: ``grown`` with ``lm_every > 0``, else
     ``odometry``): dead reckoning, or the graph grown with its LM passes."""
     name = name or ("grown" if cfg.lm_every > 0.0 else "odometry")
     if name == "grown":
-        inc = _Incremental(data, cfg, kf, solver=False)
+        grown = cfg if cfg.lm_every > 0.0 else dataclasses.replace(cfg, lm_every=GROWN_EVERY)
+        inc = _Incremental(data, grown, kf, solver=False)
         for e in range(len(kf.steps)):
             inc.step(e)
         return Start("grown", *inc.estimate(), inc.rejected)
