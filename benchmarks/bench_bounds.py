@@ -13,7 +13,7 @@ import time
 import numpy as np
 
 import workbench
-from workbench.experiments import get
+from workbench.core.registry import get
 
 
 def _bounds(name: str, exp, cfg, result) -> float:

@@ -99,7 +99,7 @@ def per_run(runs: int) -> tuple[dict[str, list[float]], dict[str, list[float]], 
     """Each estimator's seconds on paper runs 1..runs, the plain workloads timed beside each run,
     and each run's bookkeeping (its whole time less the estimators')."""
     from workbench import api
-    from workbench.experiments import get
+    from workbench.core.registry import get
 
     exp = get("sea")
     cfg = exp.validate(exp.configure("paper"))

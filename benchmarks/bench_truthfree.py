@@ -1,6 +1,6 @@
 """What the truth-free metrics cost (issue 25: at most 10 % of a run): for each experiment's paper
 scenario, the seconds of a run (its dataset and every default estimator: ``run_once``) against
-the seconds its metrics take, the truth-free ones apart (:mod:`workbench.experiments.truthfree`
+the seconds its metrics take, the truth-free ones apart (:mod:`workbench.metrics.truthfree`
 and the disagreement with the smoother), on the same runs in one process.
 
 Run: ``python benchmarks/bench_truthfree.py [--runs N]``. The load average is printed: on a
@@ -13,7 +13,8 @@ import argparse
 import os
 import time
 
-from workbench.experiments import get, metric
+from workbench.core.registry import get
+from workbench.metrics import base as metric
 
 SETTINGS = {"sea": {}, "omni": {"duration": 200.0}, "terrain": {"size": "100x100"}}
 

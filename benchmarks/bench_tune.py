@@ -19,7 +19,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from workbench.experiments import get
+from workbench.core.registry import get
 from workbench.tuning import space, study
 
 

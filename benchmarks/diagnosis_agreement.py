@@ -1,4 +1,4 @@
-"""How far to trust the truth-free diagnosis (:mod:`workbench.experiments.diagnosis`), measured:
+"""How far to trust the truth-free diagnosis (:mod:`workbench.metrics.diagnosis`), measured:
 on simulations where the truth is known, a grid of wrong assumptions, each cell's truth-free
 diagnosis per estimator against its NEES verdict and its error over its Cramér-Rao bound.
 
@@ -15,7 +15,7 @@ Cells:
 A cell **agrees** where the diagnosis calls the estimator consistent (its verdict "consistent",
 or "outliers" its gate took out with its noise right otherwise) exactly where the NEES is inside
 its band; with ``--bootstrap B`` (B resamples per run from the run's own answer,
-:mod:`workbench.experiments.bootstrap`), where its truth-free NEES is inside its band (``covers``),
+:mod:`workbench.metrics.bootstrap`), where its truth-free NEES is inside its band (``covers``),
 the noise's verdict beside it; the goals (issue 34): agreement in at least 90 % of the cells, and no estimator whose
 error is 5x its bound called consistent. Beside it, whether the diagnosis names the fault the
 cell was built with (:data:`FAULTS`): the NEES of a pose cannot see every wrong noise (a bearing
@@ -35,8 +35,8 @@ import time
 from pathlib import Path
 
 from workbench import api
-from workbench.experiments import diagnosis
 from workbench.experiments.omni import faults
+from workbench.metrics import diagnosis
 
 FAULTS = {"paper, as simulated": "consistent", "synthetic log, as it is": "consistent",
           "paper, odometry x0.3": "too narrow", "paper, odometry x3": "too wide",

@@ -21,8 +21,8 @@ import tempfile
 from pathlib import Path
 
 import workbench
-from workbench.experiments import get
-from workbench.tuning import selftune
+from workbench.core import selftune
+from workbench.core.registry import get
 
 ESTIMATORS = ["ekf", "isam2", "gtsam-batch"]
 

@@ -24,8 +24,8 @@ import time
 from collections import defaultdict
 from pathlib import Path
 
-from workbench.experiments import get
-from workbench.tuning import selftune
+from workbench.core import selftune
+from workbench.core.registry import get
 
 TRUTH = {
     "sea": {"sigma_acc": 0.1, "sigma_alpha_arcmin": 0.88, "sigma_beta_arcmin": 1.56},

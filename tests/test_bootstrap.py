@@ -1,4 +1,4 @@
-"""The parametric bootstrap's truth-free NEES (:mod:`workbench.experiments.bootstrap`,
+"""The parametric bootstrap's truth-free NEES (:mod:`workbench.metrics.bootstrap`,
 :mod:`workbench.experiments.omni.resample`): a resample's noise is the one told times the factor
 the data identify, its truth obeys the motion model, and the NEES it gives tells a covariance that
 covers its error from one that does not."""

@@ -195,7 +195,7 @@ def test_terrain_bound_and_its_fisher_information():
     and its filters use image II's central-difference gradient, interpolated: a reading the bound
     module states.)"""
     import workbench
-    from workbench.experiments import get
+    from workbench.core.registry import get
     from workbench.experiments.terrain import bounds as tb
     from workbench.experiments.terrain import search as rs
 

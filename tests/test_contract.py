@@ -4,6 +4,8 @@ scenario defaults in one place (the same from the CLI and Python), the demo's ru
 import ast
 import json
 import re
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -12,7 +14,9 @@ from typer.testing import CliRunner
 
 import workbench
 from workbench import cli
-from workbench.experiments import REGISTRY, contract, get, settings
+from workbench.config import settings
+from workbench.core import experiment as contract
+from workbench.core.registry import REGISTRY, get
 from workbench.experiments.sea.config import SeaConfig
 from workbench.experiments.terrain.config import TerrainConfig
 
@@ -30,62 +34,108 @@ def test_every_experiment_has_the_same_files_for_the_same_roles():
         assert all(e.experiment == name and e.ref == e.name and e.builtin for e in exp.estimators.values())
 
 
-def _modules() -> dict[str, Path]:
+def _modules(package: Path = PACKAGE) -> dict[str, Path]:
     out = {}
-    for path in PACKAGE.rglob("*.py"):
-        rel = path.relative_to(PACKAGE.parent).with_suffix("")
+    for path in package.rglob("*.py"):
+        rel = path.relative_to(package.parent).with_suffix("")
         out[".".join(rel.parts[:-1] if rel.name == "__init__" else rel.parts)] = path
     return out
 
 
-def _imports(path: Path, modules: dict[str, Path]) -> set[str]:
+def _imports(path: Path, modules: dict[str, Path], root: str = "workbench") -> set[str]:
     """Modules of the package a module imports, anywhere in it (a lazy import inside a function
     is a dependency too): ``from pkg import mod`` is an import of ``pkg.mod`` alone, ``from pkg
-    import name`` (not a module) of ``pkg``."""
+    import name`` (not a module) of ``pkg``; and a string that names one of its modules
+    (``"pkg.mod"`` or ``"pkg.mod:function"``, what a string import would load) is an edge too."""
     out = set()
     for node in ast.walk(ast.parse(path.read_text())):
-        if isinstance(node, ast.ImportFrom) and node.module and node.module.startswith("workbench"):
+        if isinstance(node, ast.ImportFrom) and node.module and node.module.startswith(root):
             subs = {f"{node.module}.{a.name}" for a in node.names} & set(modules)
             out |= subs | ({node.module} if len(subs) < len(node.names) else set())
         elif isinstance(node, ast.Import):
-            out.update(a.name for a in node.names if a.name.startswith("workbench"))
+            out.update(a.name for a in node.names if a.name.startswith(root))
+        elif isinstance(node, ast.Constant) and isinstance(node.value, str):
+            named = re.fullmatch(rf"({re.escape(root)}(?:\.\w+)+)(?::[\w.]+)?", node.value.strip())
+            # a package's bare name is not an import (an entry-point group is named so)
+            if named and named.group(1) in modules and (":" in node.value
+                                                         or modules[named.group(1)].stem != "__init__"):
+                out.add(named.group(1))
     return out
 
 
-def import_graph() -> dict[str, set[str]]:
-    modules = _modules()
-    return {m: {i for i in _imports(p, modules) if i in modules and i != m} for m, p in modules.items()}
+def import_graph(package: Path = PACKAGE) -> dict[str, set[str]]:
+    modules = _modules(package)
+    root = package.name
+    return {m: {i for i in _imports(p, modules, root) if i in modules and i != m} for m, p in modules.items()}
 
 
-def test_no_import_cycles():
-    """No module of the package reaches itself through its imports, lazy ones included."""
-    graph = import_graph()
+def find_cycle(graph: dict[str, set[str]]) -> list[str] | None:
+    """A path of modules that reaches its first again, or None."""
     state: dict[str, int] = {}
 
     def visit(m, stack):
         state[m] = 1
         for n in sorted(graph[m]):
             if state.get(n) == 1:
-                raise AssertionError("import cycle: " + " -> ".join([*stack, m, n]))
+                return [*stack, m, n]
             if n not in state:
-                visit(n, [*stack, m])
+                found = visit(n, [*stack, m])
+                if found:
+                    return found
         state[m] = 2
+        return None
 
     for m in sorted(graph):
         if m not in state:
-            visit(m, [])
+            found = visit(m, [])
+            if found:
+                return found
+    return None
+
+
+def test_no_import_cycles():
+    """No module of the package reaches itself through its imports, lazy and string ones included."""
+    cycle = find_cycle(import_graph())
+    assert cycle is None, "import cycle: " + " -> ".join(cycle)
+
+
+def test_a_cycle_made_on_purpose_is_found(tmp_path):
+    """The test above fails on a cycle through a lazy import, and on one through a string import
+    (``"pkg.mod:function"`` handed to a loader), which Python's own imports would not show."""
+    pkg = tmp_path / "demo_pkg"
+    pkg.mkdir()
+    (pkg / "__init__.py").write_text("")
+    (pkg / "a.py").write_text("from demo_pkg import b\n")
+    (pkg / "b.py").write_text("def f():\n    from demo_pkg.c import g\n    return g\n")
+    (pkg / "c.py").write_text("def g():\n    return 1\n")
+    assert find_cycle(import_graph(pkg)) is None
+    (pkg / "c.py").write_text("def g():\n    from demo_pkg.a import b\n    return b\n")
+    assert find_cycle(import_graph(pkg)) == ["demo_pkg.a", "demo_pkg.b", "demo_pkg.c", "demo_pkg.a"]
+    (pkg / "c.py").write_text("import importlib\n\ndef g():\n    return importlib.import_module('demo_pkg.a')\n")
+    assert find_cycle(import_graph(pkg)) == ["demo_pkg.a", "demo_pkg.b", "demo_pkg.c", "demo_pkg.a"]
+    (pkg / "c.py").write_text("RUN = 'demo_pkg.a:main'\n")
+    assert find_cycle(import_graph(pkg)) == ["demo_pkg.a", "demo_pkg.b", "demo_pkg.c", "demo_pkg.a"]
+
+
+def test_no_string_imports_of_its_own_modules():
+    """Nothing of the workbench loads its own modules by name: ``importlib`` loads only what a user
+    names (:mod:`workbench.loading`: plugins, entry points, files)."""
+    users = {m for m, p in _modules().items()
+             if "import_module(" in p.read_text() or "spec_from_file_location(" in p.read_text()}
+    assert users == {"workbench.loading"}, users
 
 
 BELOW = {"workbench.estimation": ("workbench.estimation", "workbench.errors"),
          "workbench.recording": ("workbench.recording", "workbench.errors", "workbench.paths", "workbench.version"),
-         "workbench.experiments.estimator": ("workbench.experiments.estimator", "workbench.loading", "workbench.errors",
-                                             "=workbench.experiments", "=workbench.experiments.deadline"),
-         "workbench.experiments.deadline": ("=workbench.experiments.deadline", "workbench.errors"),
-         "workbench.experiments.metric": ("workbench.experiments.metric", "workbench.loading", "workbench.errors",
-                                          "workbench.estimation")}
+         "workbench.io": ("workbench.io", "workbench.errors", "=workbench.recording.stream"),
+         "workbench.config": ("workbench.config", "workbench.errors", "=workbench.loading"),
+         "workbench.core.estimator": ("workbench.core.estimator", "workbench.loading", "workbench.errors",
+                                      "=workbench.core.timeout"),
+         "workbench.core.timeout": ("=workbench.core.timeout", "workbench.errors"),
+         "workbench.metrics.base": ("workbench.metrics.base", "workbench.loading", "workbench.errors",
+                                    "workbench.estimation")}
 """Layers and what each may import: the math, the drawing primitives, the estimator side of the
-contract (the registry's lookup aside, ``=`` that module alone: a worker finds an estimator
-again by its experiment)."""
+contract, the files and the settings (``=`` that module alone)."""
 
 
 def test_no_upward_imports():
@@ -168,3 +218,68 @@ def test_the_demo_skips_only_absent_data(demo_in):
 def test_the_demo_fails_on_anything_else(demo_in):
     r = demo_in({"sea": (contract.Demo("s-bad", "paper", {"lam": 5.0}),)})
     assert r.exit_code == 2 and "--lam must be in (0, 1]" in r.output
+
+
+OLD_PATHS = {"workbench.experiments.contract": "workbench.core.experiment",
+             "workbench.experiments.estimator": "workbench.core.estimator",
+             "workbench.experiments.metric": "workbench.metrics.base",
+             "workbench.experiments.settings": "workbench.config.settings",
+             "workbench.experiments.figures": "workbench.metrics.statistics",
+             "workbench.experiments.textfile": "workbench.io.text",
+             "workbench.montecarlo": "workbench.core.montecarlo",
+             "workbench.tuning.selftune": "workbench.core.selftune"}
+
+
+@pytest.mark.parametrize("old,new", sorted(OLD_PATHS.items()))
+def test_an_old_module_path_warns_and_is_the_new_module(old, new):
+    code = ("import warnings, importlib\nwarnings.simplefilter('always')\n"
+            "with warnings.catch_warnings(record=True) as w:\n"
+            f"    old = importlib.import_module({old!r})\n"
+            f"assert old is importlib.import_module({new!r}), old\n"
+            f"assert [str(x.message) for x in w if x.category.__name__ == 'MovedWarning'] == "
+            f"[{old!r} + ' has moved to ' + {new!r} + '; the old path goes in the next release'], "
+            "[str(x.message) for x in w]\n")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr[-1500:]
+
+
+def test_a_plugin_written_against_the_old_paths_still_runs(tmp_path):
+    """An estimator file of the last release, importing from workbench.experiments.*: it runs, and
+    the user is told where the names went (a FutureWarning, shown without any filter set)."""
+    (tmp_path / "old_plugin.py").write_text(
+        "from workbench.experiments.estimator import estimator\n"
+        "from workbench.experiments.sea.algorithms import geometric\n\n\n"
+        "@estimator(description='the geometric fix, from an old plugin', causal=True)\n"
+        "def old_fix(data, cfg):\n"
+        "    return geometric.estimate(data)\n")
+    done = subprocess.run([sys.executable, "-m", "workbench", "sea", "--runs", "1", "--duration", "20",
+                           "--estimators", "geometric,old_plugin.py:old_fix", "--out", "old.rrd"],
+                          cwd=tmp_path, capture_output=True, text=True, timeout=600)
+    assert done.returncode == 0, done.stderr[-1500:]
+    assert "old_fix" in done.stdout
+    assert "warning: workbench.experiments.estimator has moved to workbench.core.estimator" in done.stderr
+
+
+def test_a_declaration_is_checked_with_one_clear_error():
+    from workbench.core import parts
+    from workbench.core.experiment import Experiment
+    from workbench.errors import WorkbenchError
+
+    sea = get("sea")
+    with pytest.raises(WorkbenchError, match=r"declares no part called make_dat; its parts are make_data, check"):
+        parts.declare("mine", make_dat=sea.parts.make_data, check=sea.parts.check, estimators={}, metrics=())
+    with pytest.raises(WorkbenchError, match=r"'mine' does not declare its metrics \(a required part\)"):
+        parts.declare("mine", make_data=sea.parts.make_data, check=sea.parts.check, estimators={})
+
+    class Mine(Experiment):
+        name = "mine"
+        config_type = SeaConfig
+        scenarios = sea.scenarios
+
+        def declare(self):
+            return parts.declare(self.name, make_data=sea.parts.make_data, check="estimate.check",
+                                 estimators=sea.estimators, metrics=sea.parts.metrics)
+
+    with pytest.raises(WorkbenchError, match="its part check is str, not a function"):
+        Mine().check_declaration()
+    assert all(get(n).check_declaration() is get(n) for n in REGISTRY)

@@ -1,4 +1,4 @@
-"""The truth-free diagnosis (:mod:`workbench.experiments.diagnosis`): the noise fit against draws
+"""The truth-free diagnosis (:mod:`workbench.metrics.diagnosis`): the noise fit against draws
 of known scale, tail and censoring; the redundancy against the hat matrix of a small graph; the
 verdicts on hand-made evidence; and the end-to-end on synthetic logs with a known fault."""
 
@@ -13,8 +13,8 @@ from launcher import cli
 from workbench.estimation import noisefit
 from workbench.estimation.consistency import Innovations
 from workbench.estimation.redundancy import hat_traces
-from workbench.experiments import diagnosis
 from workbench.experiments.omni import faults
+from workbench.metrics import diagnosis
 
 GATE = 6.634896601021214  # chi-square, 1 dof, 99 %
 

@@ -27,8 +27,8 @@ from hypothesis import strategies as st
 from launcher import ctrl_c_as_a_terminal
 
 from workbench import api
+from workbench.core.registry import all_experiments
 from workbench.errors import WorkbenchError
-from workbench.experiments import all_experiments
 from workbench.recording import stream
 
 
@@ -246,7 +246,7 @@ def test_every_sweep_grid_value_is_cells_or_one_line_error(exp):
 def test_a_grid_value_of_a_setting_without_default_is_typed_by_its_field():
     """Found by the fuzz above: omni's sigma-bearing defaults to None (the scenario's), so ':' went
     through as text and the config's check failed with a TypeError (an internal error)."""
-    from workbench.experiments import get
+    from workbench.core.registry import get
     from workbench.sweeps import grid
 
     with pytest.raises(WorkbenchError, match="--grid sigma_bearing_deg=:"):
@@ -257,7 +257,7 @@ def test_a_grid_value_of_a_setting_without_default_is_typed_by_its_field():
 @pytest.fixture(scope="module")
 def exported_logs(tmp_path_factory):
     """Each experiment's run 0 written in its open log format (docs/log-formats.md), small."""
-    from workbench.experiments import get
+    from workbench.core.registry import get
 
     folders = {}
     for name, settings_ in (("sea", {"duration": 10.0}), ("omni", {"duration": 10.0}),
@@ -265,7 +265,7 @@ def exported_logs(tmp_path_factory):
         exp = get(name)
         cfg = exp.validate(exp.configure(**settings_))
         folder = tmp_path_factory.mktemp(f"log-{name}")
-        exp.role("run").write_log(exp.dataset(cfg, 0), folder, force=True)
+        exp.parts.write_log(exp.dataset(cfg, 0), folder, force=True)
         folders[name] = folder
     return folders
 
@@ -276,7 +276,7 @@ def test_every_log_manifest_value_is_data_or_one_line_error(name, exported_logs,
     as data or is one line naming the file: never another exception (``--scenario log``)."""
     import shutil
 
-    from workbench.experiments import get
+    from workbench.core.registry import get
 
     exp = get(name)
     base = exported_logs[name]

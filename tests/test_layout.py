@@ -10,9 +10,9 @@ import pytest
 import rerun.blueprint as rrb
 from launcher import wb
 
-from workbench import experiments
-from workbench.experiments import estimator as plugins
-from workbench.experiments import plots as plots_mod
+from workbench.core import estimator as plugins
+from workbench.core import registry as experiments
+from workbench.metrics import curves as plots_mod
 from workbench.recording import draw, layout
 from workbench.tools import browser
 

@@ -15,10 +15,11 @@ import pytest
 from launcher import cli, wb
 
 import workbench
+from workbench.core.registry import get
 from workbench.errors import WorkbenchError
 from workbench.estimation.metrics import chi2_band
-from workbench.experiments import figures, get
-from workbench.experiments.metric import Metric, Values
+from workbench.metrics import statistics as figures
+from workbench.metrics.base import Metric, Values
 from workbench.recording import readback
 
 T = np.arange(6.0)
@@ -71,8 +72,8 @@ def test_every_experiment_declares_its_metrics_in_one_shape():
         exp = get(name)
         metrics = exp.metrics()
         assert len({m.name for m in metrics}) == len(metrics) and all(m.source == "built-in" for m in metrics)
-        assert set(exp.role("metrics").TABLE) <= {m.name for m in metrics}
-        for _, _, bound, eff in exp.role("metrics").BOUNDS:
+        assert set(exp.parts.table_columns) <= {m.name for m in metrics}
+        for _, _, bound, eff in exp.parts.bounds:
             assert bound in {m.name for m in metrics} and eff in {m.name for m in metrics}
     with pytest.raises(WorkbenchError, match="a letter, then"):
         Metric("2bad", None, "", "")

@@ -9,7 +9,7 @@ import nbformat
 import rerun as rr
 from nbclient import NotebookClient
 
-NOTEBOOK = Path(__file__).resolve().parents[1] / "tutorials" / "notebook.ipynb"
+NOTEBOOK = Path(__file__).resolve().parents[1] / "docs" / "tutorials" / "notebook.ipynb"
 WIDGET = "application/vnd.jupyter.widget-view+json"
 
 

@@ -12,7 +12,7 @@ import pytest
 from launcher import DATA, bad_logs_say_one_line, edit_line, wb
 
 import workbench
-from workbench.experiments import diagnosis
+from workbench.metrics import diagnosis
 from workbench.recording import blueprints, readback
 
 ALL = "odometry,ekf-paper,ekf,isam2,gtsam-batch"

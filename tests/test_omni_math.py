@@ -14,11 +14,11 @@ from workbench.errors import WorkbenchError
 from workbench.estimation import metrics, unscented
 from workbench.estimation.angles import wrap
 from workbench.estimation.metrics import chi2_quantile
-from workbench.experiments import figures
 from workbench.experiments.omni import ekf, evaluate, graph, triangulation, tum
 from workbench.experiments.omni.config import OmniConfig, make_config
 from workbench.experiments.omni.motion import Motion
 from workbench.experiments.omni.scenario import simulate, world
+from workbench.metrics import statistics as figures
 
 
 def _mu(pi, pj, landmark):

@@ -15,9 +15,9 @@ import pytest
 from launcher import wb
 
 import workbench
+from workbench.core import estimator as plugins
+from workbench.core.registry import get
 from workbench.errors import WorkbenchError
-from workbench.experiments import estimator as plugins
-from workbench.experiments import get
 from workbench.experiments.sea.estimate import Estimate as SeaEstimate
 from workbench.recording import readback
 
@@ -276,7 +276,7 @@ def test_a_timeout_stops_a_python_loop_and_frees_its_thread():
             except Exception:
                 pass
 
-    from workbench.experiments.deadline import EstimatorTimedOut, call_with_timeout
+    from workbench.core.timeout import EstimatorTimedOut, call_with_timeout
 
     t0 = time.monotonic()
     with pytest.raises(EstimatorTimedOut, match="timed out after 0.5 s"):

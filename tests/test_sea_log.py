@@ -11,7 +11,7 @@ import pytest
 from launcher import DATA, bad_logs_say_one_line, edit_line, wb
 
 import workbench
-from workbench.experiments import csvfile
+from workbench.io import csvfiles as csvfile
 from workbench.recording import blueprints, readback
 
 ALL = "geometric,rls,window-rls,ekf,gtsam,isam2,fixed-lag"

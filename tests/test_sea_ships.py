@@ -10,9 +10,10 @@ import pytest
 from launcher import DATA, wb
 
 import workbench
+from workbench.core.registry import get
 from workbench.errors import DataWarning, WorkbenchError
-from workbench.experiments import csvfile, get
 from workbench.experiments.sea.readers import ais, uav
+from workbench.io import csvfiles as csvfile
 from workbench.recording import readback
 from workbench.sweeps import runner
 

@@ -50,7 +50,7 @@ def test_where_the_camera_path_is_the_fixes_own_the_azimuth_is_left():
     8.7 arcmin against the azimuth's 0.88): the azimuth's own noise is left, and why."""
     import dataclasses
 
-    from workbench.experiments import get
+    from workbench.core.registry import get
     from workbench.experiments.sea import run
 
     exp = get("sea")
@@ -85,7 +85,7 @@ def test_the_contaminated_likelihood_charges_a_gated_bearing_as_an_outlier():
 
 
 def test_the_ekf_leaves_out_a_bearing_more_likely_an_outlier_than_not():
-    from workbench.experiments import get
+    from workbench.core.registry import get
     from workbench.experiments.omni.ekf import BearingEkf
 
     exp = get("omni")
@@ -100,7 +100,7 @@ def test_the_ekf_leaves_out_a_bearing_more_likely_an_outlier_than_not():
 
 
 def test_intervals_from_the_hessian_and_what_is_not_identified():
-    from workbench.tuning import selftune
+    from workbench.core import selftune
 
     x = np.log([2.0, 5.0])
     sd = 0.1
@@ -118,7 +118,7 @@ def test_intervals_from_the_hessian_and_what_is_not_identified():
 def test_a_scale_on_the_logs_own_covariances_reaches_every_row():
     import dataclasses
 
-    from workbench.experiments import get
+    from workbench.core.registry import get
     from workbench.experiments.omni import run
 
     exp = get("omni")
@@ -174,8 +174,8 @@ def test_the_smoothers_variance_components_robust_where_a_gate_judged():
     the outliers out, the core's factor of a scale mixture over them all: 2,000 bearings whose
     noise is 1.5x (in sigma) what was assumed, 10 % of them outliers 30 sigma wide that the gate
     dropped, redundancy 80 % of the rows."""
+    from workbench.core import components as selftune
     from workbench.estimation.consistency import Residuals
-    from workbench.tuning import components as selftune
 
     rng = np.random.default_rng(3)
     n_b, n_o = 2000, 600
@@ -200,9 +200,9 @@ def test_the_smoothers_variance_components_robust_where_a_gate_judged():
 
 
 def test_the_graphs_gate_is_the_outlier_models_where_one_is_assumed():
+    from workbench.core.registry import get
     from workbench.estimation import outliers
     from workbench.estimation.metrics import chi2_quantile
-    from workbench.experiments import get
     from workbench.experiments.omni import graph
 
     exp = get("omni")
@@ -219,7 +219,7 @@ def test_a_likelihood_that_jumps_is_not_read_as_curvature():
     """A Gaussian's NLL in a log-sigma is smooth (its curvature at twice the step within 17 %); one
     that jumps by units as a filter's rows change reads four times more curved at the step than at
     twice it, and its value is not identified (the interval would be that much too narrow)."""
-    from workbench.tuning import selftune
+    from workbench.core import selftune
 
     n = 400
     smooth = lambda y: n * (y[0] + 0.5 * np.exp(-2 * y[0])) + 0.1 * y[1] ** 2 + 5.0 * (abs(y[1]) > 0.3)  # noqa: E731

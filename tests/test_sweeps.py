@@ -19,8 +19,8 @@ import pyarrow.parquet as pq
 import pytest
 from launcher import cli, ctrl_c_as_a_terminal, wb
 
+from workbench.core.registry import get
 from workbench.errors import WorkbenchError
-from workbench.experiments import get
 from workbench.recording import readback
 from workbench.sweeps import grid, runner
 

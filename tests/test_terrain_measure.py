@@ -216,7 +216,7 @@ def _add_z_scores(z: dict[str, list[float]], first, points, lines, polygons) -> 
 
 
 def _z_scores(scenario: str, runs: int, **overrides) -> dict[str, list[float]]:
-    from workbench.experiments import get
+    from workbench.core.registry import get
 
     exp = get("terrain")
     cfg = api.configure("terrain", scenario, **overrides)

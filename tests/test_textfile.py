@@ -1,4 +1,4 @@
-"""The one text reader under every loader (:mod:`workbench.experiments.textfile`): each reader
+"""The one text reader under every loader (:mod:`workbench.io.text`): each reader
 (AIS, UAV, MRCLAM, the NGI orientation files, each experiment's log format) reads a file altered
 by a text export's quirks (a byte-order mark, blank lines at the end, quoted fields, a ``;``
 separator with decimal commas, CRLF line ends, all at once) to the same arrays as the unaltered
@@ -22,11 +22,12 @@ import pytest
 from launcher import DATA, cli, wb
 
 import workbench
+from workbench.core.registry import get
 from workbench.errors import DataWarning, WorkbenchError
-from workbench.experiments import get, textfile
 from workbench.experiments.omni import mrclam
 from workbench.experiments.sea.readers import ais, uav
 from workbench.experiments.terrain import ngi_orientation
+from workbench.io import text as textfile
 
 NUMBER = re.compile(r"[+-]?(?:\d+\.\d*|\.\d+)(?:[eE][+-]?\d+)?")
 QUIRKS = ("bom", "trailing_empty_lines", "quoted_fields", "semicolon_decimal_commas", "crlf", "all")
@@ -279,7 +280,7 @@ def logs(tmp_path_factory) -> dict[str, Path]:
     for name, (scenario, settings) in LOGS.items():
         exp = get(name)
         folder = tmp_path_factory.mktemp("logs") / name
-        exp.role("run").write_log(exp.dataset(workbench.configure(name, scenario, **settings), 0), folder, False)
+        exp.parts.write_log(exp.dataset(workbench.configure(name, scenario, **settings), 0), folder, False)
         out[name] = folder
     return out
 

@@ -17,7 +17,7 @@ import pytest
 
 from workbench.paths import data_root
 
-TUTORIALS = sorted((Path(__file__).resolve().parents[1] / "tutorials").glob("*.md"))
+TUTORIALS = sorted((Path(__file__).resolve().parents[1] / "docs" / "tutorials").glob("*.md"))
 BLOCK = re.compile(r"```(sh real-data|sh|(?:python|toml) file=\S+|python run)\n(.*?)```", flags=re.S)
 
 

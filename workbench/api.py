@@ -1,9 +1,11 @@
 """The Python API, and the one code path every experiment runs through (the CLI is a thin
 layer over :func:`run`).
 
->>> import workbench
->>> res = workbench.run("sea", scenario="paper", runs=10, estimators=["geometric", "gtsam", my_filter])
->>> res.metrics["estimators"]["my_filter"]["position_rmse"], res.estimates["my_filter"].position
+```python
+import workbench
+res = workbench.run("sea", scenario="paper", runs=10, estimators=["geometric", "gtsam", my_filter])
+res.metrics["estimators"]["my_filter"]["position_rmse"], res.estimates["my_filter"].position
+```
 
 ``run`` configures (the scenario's defaults under the overrides), checks every output before
 any work, runs run 0 (kept whole: ``res.first``, ``res.data``, ``res.estimates``) and the other
@@ -26,10 +28,13 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from workbench import loading, montecarlo
+from workbench import loading
+from workbench.config import checks as limits
+from workbench.core import montecarlo
+from workbench.core.experiment import Experiment, without
+from workbench.core.registry import get
 from workbench.errors import WorkbenchError
-from workbench.experiments import get, limits, metric
-from workbench.experiments.contract import Experiment, without
+from workbench.metrics import base as metric
 
 
 @dataclass
@@ -78,7 +83,7 @@ def run(experiment: str | Experiment, scenario: str | None = None, *, config: An
 
     ``config``: a ready config instead of ``scenario`` (the overrides then replace its fields), or
     a config file's path (TOML or JSON: ``--config``) or a mapping of settings, which go between the
-    scenario's defaults and the overrides (:mod:`workbench.experiments.configfile`).
+    scenario's defaults and the overrides (:mod:`workbench.config.files`).
     ``estimators``: names, ``+name`` (the defaults and), ``module:function`` / ``file.py:function``
     specs, or functions ``(data, cfg) -> Estimate``. ``out``: write run 0's recording there
     (``.rrd``); ``metrics``: the metrics JSON; neither overwrites without ``force``.
@@ -117,7 +122,7 @@ def run(experiment: str | Experiment, scenario: str | None = None, *, config: An
     exp.check_extras(cfg, extras, force)
     tuned = None
     if cfg.tune_noise:  # the noise the data identify, told to every estimator; the stored config then runs as is
-        from workbench.tuning import selftune
+        from workbench.core import selftune
 
         cfg, tuned = selftune.tune_noise(exp, cfg)
         cfg = exp.validate(dataclasses.replace(cfg, tune_noise=False))
@@ -168,7 +173,7 @@ def run(experiment: str | Experiment, scenario: str | None = None, *, config: An
             stats["recording"] = str(out_path)
         lines = exp.export(first, stats, extras, force)
         if tuned is not None:
-            from workbench.tuning import selftune
+            from workbench.core import selftune
 
             lines = selftune.lines(tuned) + lines
         if metrics_path is not None:
@@ -190,12 +195,12 @@ def run(experiment: str | Experiment, scenario: str | None = None, *, config: An
 def command(name: str) -> Callable:
     """A command an experiment declares (terrain's ``measure``), as its Python function: found in
     the registry, the way the command line finds it."""
-    from workbench import experiments, loading
+    from workbench.core import registry as experiments
 
     for exp in experiments.all_experiments():
         for cmd in exp.commands:
             if cmd.name == name and cmd.api is not None:
-                return loading.load(cmd.api, "command")
+                return cmd.api()
     raise AttributeError(f"module 'workbench.api' has no attribute {name!r}")
 
 

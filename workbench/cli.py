@@ -23,8 +23,9 @@ from pathlib import Path
 
 import typer
 
-from workbench import commands, experiments, loading
+from workbench import commands, loading
 from workbench.commands import RECORDINGS, execute
+from workbench.core import registry as experiments
 from workbench.errors import DataNotFound, WorkbenchError
 from workbench.sweeps import commands as sweep_commands
 from workbench.tools import commands as tool_commands
@@ -108,7 +109,7 @@ def friendly(fn: Callable) -> Callable:
 for _exp in experiments.all_experiments():
     app.command(_exp.name)(commands.command(_exp, friendly))
     for _cmd in _exp.commands:
-        app.command(_cmd.name)(friendly(loading.load(_cmd.cli, "command")))
+        app.command(_cmd.name)(friendly(_cmd.cli()))
 app.command("sweep")(friendly(sweep_commands.sweep))
 app.command("sweep-report")(friendly(sweep_commands.sweep_report))
 app.command("tune")(friendly(tune_commands.tune))
@@ -119,7 +120,7 @@ for _name in ("info", "replay", "screenshot", "compare", "view"):
 @app.command("list")
 def list_experiments() -> None:
     """Name the experiments, their scenarios and estimators (installed plugins too)."""
-    from workbench.experiments.estimator import installed
+    from workbench.core.estimator import installed
 
     for exp in experiments.all_experiments():
         typer.echo(f"{exp.name:8s} {exp.description}")

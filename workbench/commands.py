@@ -46,6 +46,7 @@ def execute(exp, scenario: str | None, out: Path | None, force: bool, metrics: P
     from workbench import api
 
     bar, task = _progress()
+    from workbench._moved import MovedWarning
     from workbench.errors import DataWarning
     from workbench.recording.stream import VIEWER_PORT, LiveWarning
 
@@ -53,12 +54,13 @@ def execute(exp, scenario: str | None, out: Path | None, force: bool, metrics: P
         warnings.simplefilter("ignore", RuntimeWarning)  # the failures are printed below
         warnings.simplefilter("always", LiveWarning)
         warnings.simplefilter("always", DataWarning)
+        warnings.simplefilter("always", MovedWarning)  # a plugin on an old module path: where it went
         res = api.run(exp, scenario, estimators=estimators, out=out or RECORDINGS / f"{exp.name}.rrd",
                       metrics=metrics, force=force, jobs=jobs, spawn=spawn, serve=serve, connect=connect,
                       config=config,
                       extras=extras, progress=lambda done, total: bar.update(task, completed=done, total=total),
                       **overrides)
-    said = dict.fromkeys(str(w.message) for w in caught if issubclass(w.category, (LiveWarning, DataWarning)))
+    said = dict.fromkeys(str(w.message) for w in caught if issubclass(w.category, (LiveWarning, DataWarning, MovedWarning)))
     for line in said:  # a real log is read once per run: each repair said once
         typer.echo(f"warning: {line}", err=True)
     if not quiet:

@@ -2,8 +2,8 @@
 metrics and experiments: a ``module:function`` spec (importable, the working folder included),
 a ``path/to/file.py:function`` spec, or an installed package's entry point.
 
-Below everything that loads plugins (:mod:`workbench.experiments.estimator`,
-:mod:`workbench.experiments.metric`, the registry): it imports nothing of the workbench but its
+Below everything that loads plugins (:mod:`workbench.core.estimator`,
+:mod:`workbench.metrics.base`, the registry): it imports nothing of the workbench but its
 errors. Every failure is a one-line :class:`~workbench.errors.WorkbenchError` naming what was
 asked for, never the plugin's traceback.
 """

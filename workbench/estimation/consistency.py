@@ -36,7 +36,7 @@ class Innovations:
     predicted covariance ``S (M, m, m)``. A NaN row is a measurement the filter left out with no
     innovation (a failed update).
 
-    Optional, for the truth-free diagnosis (:mod:`workbench.experiments.diagnosis`): ``kept (M,)``,
+    Optional, for the truth-free diagnosis (:mod:`workbench.metrics.diagnosis`): ``kept (M,)``,
     False for a measurement the filter left out although it had its innovation (a gate: the row
     keeps the innovation it was judged on, so what the gate dropped can be weighed too); ``R (M,
     m, m)``, the measurement noise part of each ``S`` (the rest is the state's predicted

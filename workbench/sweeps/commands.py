@@ -35,7 +35,7 @@ def sweep(
 ) -> None:
     """Sweep an experiment over a grid of settings: Monte Carlo runs per cell, on a local pool
     or a Dask cluster; tidy Parquet rows, a summary, plots and a recording in --out."""
-    from workbench.experiments import get
+    from workbench.core.registry import get
     from workbench.paths import PROJECT_ROOT
     from workbench.sweeps import grid as grids
     from workbench.sweeps import runner
@@ -46,7 +46,7 @@ def sweep(
             keys = " x ".join(f"{k} ({len(v)})" for k, v in p.grid.items())
             typer.echo(f"{p.name:16s} {p.description}: {keys}")
         return
-    from workbench.experiments import configfile
+    from workbench.config import files as configfile
 
     overrides = configfile.loads(exp, config) if config is not None else {}
     from_file = overrides.pop("scenario", None)

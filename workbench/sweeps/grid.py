@@ -13,8 +13,8 @@ import itertools
 from collections.abc import Iterable, Mapping
 from typing import Any
 
+from workbench.core.experiment import Experiment
 from workbench.errors import WorkbenchError
-from workbench.experiments.contract import Experiment
 from workbench.loading import split_list
 
 FIXED = ("seed", "runs", "estimators")
@@ -60,7 +60,7 @@ def parse_value(exp: Experiment, field: str, text: str) -> Any:
     name = _multi(exp).get(field, (field,))[0]
     default = _field_types(exp).get(name, 0)
     if default is None:  # no default to type it by (None: "the data's own"): the field's annotation
-        from workbench.experiments.configfile import field_type
+        from workbench.config.files import field_type
 
         kind = field_type(exp, name)
         default = {float: 0.0, int: 0, bool: False}.get(kind, default)

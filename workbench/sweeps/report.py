@@ -98,7 +98,7 @@ def _num(x: float) -> str:
 
 def _experiment(name: str):
     try:
-        from workbench.experiments import get
+        from workbench.core.registry import get
 
         return get(name)
     except WorkbenchError:  # a sweep of an experiment this installation does not have
@@ -273,8 +273,6 @@ def write(folder: Path) -> list[Path]:
     written.append(recording(table, folder, md))
     exp = _experiment(table["experiment"][0].as_py())
     preset = {p.name: p for p in exp.presets}.get(manifest.get("preset")) if exp is not None else None
-    if preset is not None and preset.report:
-        from workbench.loading import load
-
-        written += load(preset.report, "report")(table, folder, manifest)
+    if preset is not None and preset.report is not None:
+        written += preset.report(table, folder, manifest)
     return written

@@ -22,9 +22,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from workbench import montecarlo
+from workbench.config import checks as limits
+from workbench.core import montecarlo
+from workbench.core.registry import get
 from workbench.errors import WorkbenchError
-from workbench.experiments import get, limits
 from workbench.sweeps import grid as grids
 from workbench.sweeps.tasks import Task, run_task, write
 from workbench.version import __version__

@@ -48,7 +48,7 @@ class Task:
 
     def config(self):
         """The cell's config (its own scenario if the grid sweeps scenarios)."""
-        from workbench.experiments import get
+        from workbench.core.registry import get
         from workbench.sweeps.grid import expand
 
         exp = get(self.experiment)
@@ -70,13 +70,13 @@ def run_task(task: Task) -> pa.Table:
     import socket
     import time
 
-    from workbench.experiments import get
+    from workbench.core.registry import get
 
     t0 = time.perf_counter()
     exp = get(task.experiment)
     cfg = task.config()
     if cfg.tune_noise:  # a cell that tunes its noise on its run 0's data first, as a run of the command does
-        from workbench.tuning import selftune
+        from workbench.core import selftune
 
         cfg = dataclasses.replace(selftune.tune_noise(exp, cfg)[0], tune_noise=False)
     chosen = exp.select(list(task.estimators))

@@ -307,7 +307,7 @@ def _numbers(tree) -> dict[str, float]:
 
 def results_text(runs: list[Run], pairs: list[tuple[str, str]], limit: int = 60) -> str:
     """Each run's command and table, then the figures (per estimator) that differ from run 0's."""
-    from workbench.experiments import get
+    from workbench.core.registry import get
 
     exp = get(runs[0].stored.experiment)
     lines = [f"**Comparison of {len(runs)} {exp.name} recordings** (each later run against `{runs[0].label}`)", ""]
@@ -344,7 +344,7 @@ def write(files: list[Path], out: Path, labels: list[str] | None = None, pairs: 
     import rerun as rr
     import rerun.blueprint as rrb
 
-    from workbench.experiments import get
+    from workbench.core.registry import get
     from workbench.recording import draw, stream
     from workbench.recording import layout as views
     from workbench.version import __version__

@@ -104,7 +104,7 @@ def _check_version(path: Path, version: str) -> None:
 
 def config_of(stored: Stored) -> Any:
     """The recording's config, rebuilt as its experiment's config type."""
-    from workbench.experiments import get, names
+    from workbench.core.registry import get, names
 
     if stored.experiment not in names():
         raise WorkbenchError(f"{stored.path} is a recording of {stored.experiment!r}, which this workbench does not "
@@ -145,7 +145,7 @@ def describe(stored: Stored) -> str:
     changed = {k: v for k, v in stored.config.items() if k not in ("estimators",)}
     lines.append("config:    " + json.dumps(changed, sort_keys=True))
     if stored.metrics is not None:
-        from workbench.experiments import get, names
+        from workbench.core.registry import get, names
 
         if stored.experiment in names():
             lines += ["", get(stored.experiment).table(stored.metrics)]
@@ -162,7 +162,8 @@ def rerun(stored: Stored, jobs: int | None = None, only: list[str] | None = None
     import copy
 
     from workbench import api
-    from workbench.experiments import figures, get
+    from workbench.core.registry import get
+    from workbench.metrics import statistics as figures
 
     cfg = config_of(stored)
     exp = get(stored.experiment)
@@ -182,7 +183,7 @@ def replay(stored: Stored, jobs: int | None = None, probe: bool = True):
     under the recording machine's kernels where this processor has them (its figures then the
     recorded ones: the machine's arithmetic explains the difference), and otherwise with the
     arithmetic perturbed: where that moves it too it is held to its Monte Carlo error."""
-    from workbench.experiments import figures
+    from workbench.metrics import statistics as figures
     from workbench.recording import machine
     from workbench.tools import reproduce
 

@@ -37,7 +37,8 @@ def tune(
 ) -> None:
     """Tune an experiment's settings (its noise model) by the likelihood of the measurements (no truth
     needed), NEES consistency or an error, with Optuna; trials on a local pool or a Dask cluster."""
-    from workbench.experiments import configfile, get
+    from workbench.config import files as configfile
+    from workbench.core.registry import get
     from workbench.loading import split_list
     from workbench.paths import PROJECT_ROOT
     from workbench.sweeps import grid as grids

@@ -2,7 +2,7 @@
 for the estimator tuned), with its Monte Carlo standard error.
 
 * ``likelihood``: the measurements' negative log-likelihood under the estimator, the mean over
-  the runs of each run's ``nll`` (:mod:`workbench.experiments.truthfree`: the prediction-error
+  the runs of each run's ``nll`` (:mod:`workbench.metrics.truthfree`: the prediction-error
   decomposition of a filter's innovations, sum over the run of ``(log det 2 pi S + r' S^-1 r) / 2``).
   No truth is read: it runs on a real log. It is the model's likelihood ``p(z | theta)``, which
   for a linear-Gaussian model the Kalman filter's innovations give exactly, so a smoother on the

@@ -14,7 +14,8 @@ from typing import Any
 
 import numpy as np
 
-from workbench.experiments import configfile, get
+from workbench.config import files as configfile
+from workbench.core.registry import get
 from workbench.recording import stream
 from workbench.tuning import files
 from workbench.tuning.objective import resolve

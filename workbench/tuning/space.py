@@ -15,8 +15,8 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
+from workbench.config import files as configfile
 from workbench.errors import WorkbenchError
-from workbench.experiments import configfile
 
 FIXED = ("seed", "runs", "estimators", "scenario")
 """Settings a study owns or that are not numbers to search over."""

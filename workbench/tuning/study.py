@@ -27,8 +27,8 @@ from typing import Any
 import pyarrow as pa
 import pyarrow.parquet as pq
 
+from workbench.core.registry import get
 from workbench.errors import WorkbenchError
-from workbench.experiments import get
 from workbench.sweeps import runner
 from workbench.sweeps.tasks import Task, run_task, write
 from workbench.tuning import space as spaces
@@ -118,7 +118,7 @@ def tune(experiment: str, params: list[spaces.Param], objective_name: str = "lik
         raise WorkbenchError(f"--seed must not be negative (got {seed})")
     base = exp.validate(exp.configure(scenario, seed=seed, runs=runs, **fixed))
     scenario = base.scenario
-    from workbench.experiments.estimator import one
+    from workbench.core.estimator import one
 
     chosen = exp.select(list(estimators) if estimators else (list(base.estimators) or None))
     name = one(exp, estimator).name if estimator else default_estimator(exp, chosen)  # a spec: its estimator's name

@@ -12,8 +12,8 @@ import math
 from dataclasses import dataclass
 from pathlib import Path
 
+from workbench.config.settings import Config, Option, Scenario, apply_scenario, by_scenario, check_assumed
 from workbench.errors import require
-from workbench.experiments.settings import Config, Option, Scenario, apply_scenario, by_scenario, check_assumed
 
 IMAGE_SIGMA_BEARING_DEG = 0.3
 
@@ -137,7 +137,7 @@ class OmniConfig(Config):
         return math.radians(self.sigma_bearing_deg)
 
     def memory_bytes(self) -> tuple[float, str]:
-        """The memory a run will need (for :mod:`workbench.experiments.limits`): ~0.5 kB a
+        """The memory a run will need (for :mod:`workbench.config.checks`): ~0.5 kB a
         simulation step (measured: +7 MB from 4,000 to 20,000 steps), ~20 kB a keyframe (the
         graphs and their marginals), and each run's summary on the keyframe grid (five
         estimators, a dozen numbers each) that the parent keeps; with ``N`` landmarks (the

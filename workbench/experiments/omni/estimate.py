@@ -78,8 +78,8 @@ class SlamEstimate:
 def check(est: SlamEstimate, data, cfg, estimator) -> SlamEstimate:
     """An estimator's answer against this type's contract; the optional parts filled (no map,
     ``steps`` from the pose's length); the name set. Raises
-    :class:`~workbench.experiments.estimator.EstimateError` naming what is wrong."""
-    from workbench.experiments.estimator import EstimateError, as_array, psd, whole_rows
+    :class:`~workbench.core.estimator.EstimateError` naming what is wrong."""
+    from workbench.core.estimator import EstimateError, as_array, psd, whole_rows
 
     if not isinstance(est, SlamEstimate):
         raise EstimateError(f"returned {type(est).__name__}, not an omni SlamEstimate")

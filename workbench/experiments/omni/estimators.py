@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import math
 
-from workbench.experiments.estimator import Estimator, RunContext, table
+from workbench.core.estimator import Estimator, RunContext, table
 from workbench.experiments.omni.config import OmniConfig
 from workbench.experiments.omni.estimate import SlamEstimate
 from workbench.experiments.omni.scenario import OmniData

@@ -10,19 +10,20 @@ Errors are ``truth - estimate`` with the heading wrapped; "after settling" means
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
+from workbench.core.experiment import RunSummary as Summary
 from workbench.estimation import consistency, metrics
 from workbench.estimation.angles import wrap
-from workbench.experiments import truthfree
-from workbench.experiments.contract import RunSummary as Summary
 from workbench.experiments.omni import bounds as omni_bounds
 from workbench.experiments.omni import graph, survey
 from workbench.experiments.omni.config import OmniConfig
 from workbench.experiments.omni.estimate import SlamEstimate
 from workbench.experiments.omni.run import RunResult
 from workbench.experiments.omni.scenario import OmniData
+from workbench.metrics import truthfree
 
 
 def on_grid(est: SlamEstimate, grid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -151,7 +152,7 @@ def bound_kind(delay: float) -> str:
     return "smoothing" if np.isinf(delay) else f"smoothing (a lower bound for a {delay:g} s lag)"
 
 
-def statistics(cfg: OmniConfig, runs: list[RunSummary], stats: dict) -> None:
+def statistics(exp: Any, cfg: OmniConfig, runs: list[RunSummary], stats: dict) -> None:
     """What the metrics JSON holds beyond the metrics: the settling time, the grid, the units,
     each estimator's bound kind, what reading a real log repaired, the image stage's figures."""
     stats.update({"settle_seconds": cfg.settle, "grid_steps": len(runs[0].t),

@@ -1,13 +1,15 @@
 """The omni experiment (paper 000) as the workbench sees it: the one object the CLI, the demo,
-the Python API and the sweeps use. The flow goes to this package's role modules by name;
+the Python API and the sweeps use. Its parts are declared in ``declare()``;
 here are its declarations and the TUM export (``--export-tum``)."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
+from workbench.core import parts
+from workbench.core.experiment import Demo, Experiment, Preset
+from workbench.core.parts import Parts
 from workbench.errors import require
-from workbench.experiments.contract import Demo, Experiment, Preset
 from workbench.experiments.omni.config import EXTRAS, OPTIONS, SCENARIOS, OmniConfig
 from workbench.experiments.omni.estimate import SlamEstimate
 from workbench.experiments.omni.scenario import OmniData
@@ -39,6 +41,19 @@ class Omni(Experiment):
     compared = ("/monte_carlo/position", "/monte_carlo/heading", "/errors/position", "/errors/heading")
     paper_notes = {"position_rmse": "paper's claim: under 0.5 m after settling (scenario paper)",
                    "heading_rmse": "paper's claim: under 1 deg after settling (scenario paper)"}
+
+    def declare(self) -> Parts:
+        """The omni package's parts."""
+        from workbench.experiments.omni import estimate, estimators, evaluate, metrics, record, report, resample, run
+
+        return parts.declare(
+            self.name, make_data=run.make_data, check=estimate.check, estimators=estimators.TABLE,
+            metrics=metrics.METRICS, assumed=run.assumed, result_type=run.RunResult, run_once=run.run_once,
+            write_log=run.write_log, tunable=run.tunable, components=run.components, resample=resample.resample,
+            bootstrap_nees=metrics.BOOTSTRAP_NEES, summarise=evaluate.summarise, statistics=evaluate.statistics,
+            report=report.table, table_columns=metrics.TABLE, bounds=metrics.BOUNDS, renamed=metrics.RENAMED,
+            noise_groups=metrics.NOISE_GROUPS, layout=record.layout, record_run=record.record_run,
+            record_runs=record.record_runs)
 
     def check_extras(self, cfg: OmniConfig, extras: dict, force: bool) -> None:
         from workbench.recording import stream

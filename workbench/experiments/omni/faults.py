@@ -15,7 +15,7 @@ The faults, each a setting of :func:`write`:
 ``odometry = "unicycle"`` writes the same drive's odometry as speed and yaw rate per step instead
 (``SIGMA_V``, ``SIGMA_W`` white per step, the manifest's sigmas stated x ``odometry_stated``).
 
-What the diagnosis (:mod:`workbench.experiments.diagnosis`) must say of each is measured on them
+What the diagnosis (:mod:`workbench.metrics.diagnosis`) must say of each is measured on them
 (``tests/test_diagnosis.py``, ``benchmarks/diagnosis_agreement.py``).
 """
 
@@ -27,7 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
-from workbench.experiments import logfiles
+from workbench.io import logs as logfiles
 
 SIGMA_BEARING = math.radians(1.0)
 SIGMA_V = 0.1                    # m/s, a unicycle log's speed noise per step

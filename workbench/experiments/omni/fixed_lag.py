@@ -44,7 +44,7 @@ import gtsam
 import numpy as np
 from gtsam.symbol_shorthand import L, X
 
-from workbench.experiments.estimator import RunContext, estimator
+from workbench.core.estimator import RunContext, estimator
 from workbench.experiments.omni import graph
 from workbench.experiments.omni.config import OmniConfig
 from workbench.experiments.omni.estimate import SlamEstimate

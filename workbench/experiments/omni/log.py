@@ -46,10 +46,11 @@ from pathlib import Path
 import numpy as np
 
 from workbench.errors import WorkbenchError, require
-from workbench.experiments import csvfile, logfiles
 from workbench.experiments.omni.config import OmniConfig
 from workbench.experiments.omni.motion import Motion
 from workbench.experiments.omni.scenario import OmniData
+from workbench.io import csvfiles as csvfile
+from workbench.io import logs as logfiles
 
 FORMAT = 1
 CONTROLS = {"unicycle": (("v_mps", "w_radps"), ("v_var_m2ps2", "w_var_rad2ps2"), ("sigma_v_mps", "sigma_w_radps")),

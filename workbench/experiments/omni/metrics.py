@@ -1,4 +1,4 @@
-"""The omni experiment's metrics (:mod:`workbench.experiments.metric`): each a function of a run's
+"""The omni experiment's metrics (:mod:`workbench.metrics.base`): each a function of a run's
 dataset and one estimate, scored on the dataset's grid (the graph's keyframes, where every
 estimator has a pose), errors ``truth - estimate`` with the heading wrapped; the figures count
 the steps from ``settle`` seconds on (the paper's claims are for the settled filter), and each
@@ -14,12 +14,12 @@ import numpy as np
 from workbench.estimation import consistency
 from workbench.estimation.alignment import umeyama
 from workbench.estimation.angles import wrap
-from workbench.experiments import truthfree
-from workbench.experiments.metric import Metric, MetricContext, Values
 from workbench.experiments.omni import evaluate
 from workbench.experiments.omni.config import BATCH_STARTS
 from workbench.experiments.omni.estimate import SlamEstimate
 from workbench.experiments.omni.scenario import OmniData
+from workbench.metrics import truthfree
+from workbench.metrics.base import Metric, MetricContext, Values
 
 
 def _pose(data: OmniData, est: SlamEstimate, ctx: MetricContext, name: str | None = None
@@ -182,7 +182,7 @@ def smoother_gap(data: OmniData, est: SlamEstimate, ctx: MetricContext) -> Value
     sum of their covariances (3 dof; truth-free): no larger than :func:`disagreement` where both are
     consistent, and defined where the filter claims less than the smoother. Beyond chi-square's
     99.9 % point over most of the run, the two are in different basins
-    (:mod:`workbench.experiments.diagnosis`)."""
+    (:mod:`workbench.metrics.diagnosis`)."""
     ref = truthfree.reference(ctx)
     if ref is None:
         return None
@@ -391,10 +391,10 @@ METRICS: tuple[Metric, ...] = (
 """Every omni metric; the results table shows :data:`TABLE`."""
 
 BOOTSTRAP_NEES = "anees"
-"""The NEES the parametric bootstrap reads on each resample (:mod:`workbench.experiments.bootstrap`)."""
+"""The NEES the parametric bootstrap reads on each resample (:mod:`workbench.metrics.bootstrap`)."""
 
 NOISE_GROUPS = {"state": "odometry", "measurement": "bearings", "odometry": "odometry", "bearing": "bearings"}
-"""What the diagnosis (:mod:`workbench.experiments.diagnosis`) calls the noise groups: a filter's
+"""What the diagnosis (:mod:`workbench.metrics.diagnosis`) calls the noise groups: a filter's
 state uncertainty is the odometry's (the motion noise), its measurement noise the bearings'; a
 graph's residual groups by their factors."""
 

@@ -37,7 +37,7 @@ Readings taken here (say so where a caller might assume otherwise):
   their times are only non-decreasing. Time running backwards by more than ``MAX_BACKSTEP``,
   no rows, or too few columns anywhere but the last line stay errors.
 * Text quirks (a BOM, ``;`` with decimal commas, quotes, ...) are repaired and counted by
-  :mod:`workbench.experiments.textfile` (``odometry_bom``, ...); a clean file goes to numpy as is.
+  :mod:`workbench.io.text` (``odometry_bom``, ...); a clean file goes to numpy as is.
 * The default stretch starts where the start pose is known from the ground truth *and*
   odometry exists: at the first ground-truth time, or at the first odometry time if that
   is later (in MRCLAM 6 the Vicon starts about 12 s before the odometry and the robots stand
@@ -61,7 +61,7 @@ import numpy as np
 from workbench.errors import DataNotFound, DataWarning, WorkbenchError
 from workbench.estimation.alignment import interpolate_pose
 from workbench.estimation.angles import wrap
-from workbench.experiments import textfile
+from workbench.io import text as textfile
 
 ROBOT_SUBJECTS = frozenset(range(1, 6))
 """MRCLAM subject numbers of the robots (the landmarks are 6-20)."""

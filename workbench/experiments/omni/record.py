@@ -21,11 +21,11 @@ import rerun as rr
 import rerun.blueprint as rrb
 
 from workbench.estimation import metrics
-from workbench.experiments import diagnosis, truthfree
-from workbench.experiments import plots as metric_plots
 from workbench.experiments.omni import metrics as omni_metrics
 from workbench.experiments.omni.evaluate import RunSummary, on_grid, smoothed_on_grid
 from workbench.experiments.omni.run import RunResult
+from workbench.metrics import curves as metric_plots
+from workbench.metrics import diagnosis, truthfree
 from workbench.recording import draw
 from workbench.recording import layout as views
 
@@ -360,7 +360,7 @@ def record_runs(rec: rr.RecordingStream, first: RunResult, runs: list[RunSummary
 
 def first_reference(first: RunResult) -> str | None:
     """Run 0's reference where it has no truth of the robot: the run's smoother."""
-    from workbench.experiments import truthfree
+    from workbench.metrics import truthfree
 
     if np.isfinite(first.data.truth[first.grid]).any():
         return None

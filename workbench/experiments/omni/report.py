@@ -3,11 +3,11 @@ run, the Cramér-Rao bounds, the image stage's figures, beside the paper's claim
 
 from __future__ import annotations
 
-from workbench.experiments import markdown
-from workbench.experiments.markdown import number as _f
 from workbench.experiments.omni import survey
 from workbench.experiments.omni.config import BATCH_STARTS
 from workbench.experiments.omni.metrics import BOUNDS, METRICS, TABLE
+from workbench.metrics import tables as markdown
+from workbench.metrics.tables import number as _f
 
 PAPER_CLAIMS = ("paper's claims (simulation): position error < 0.5 m, heading error < 1 deg; "
                 "own standard deviations < 1 m and < 1 deg after settling; odometry drifts without bound")

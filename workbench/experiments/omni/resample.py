@@ -1,5 +1,5 @@
 """Datasets simulated from a run's own answer: the omni side of the parametric bootstrap
-(:mod:`workbench.experiments.bootstrap`; Efron and Tibshirani 1993, ch. 6).
+(:mod:`workbench.metrics.bootstrap`; Efron and Tibshirani 1993, ch. 6).
 
 The truth of a resample:
 
@@ -16,7 +16,7 @@ The truth of a resample:
 The noise: the odometry's (each step's own covariance, or the motion's sigmas) and the bearings'
 (each one's sigma) as the estimators were told them (:func:`.run.assumed`), times the factor the
 data identify for each group: the reference smoother's variance components
-(:mod:`workbench.experiments.diagnosis`), iterated (:func:`factors`), where identified; 1
+(:mod:`workbench.metrics.diagnosis`), iterated (:func:`factors`), where identified; 1
 elsewhere. The resample states the
 data's own noise, so the config's assumptions apply to it as they did to the data.
 """
@@ -31,10 +31,10 @@ import numpy as np
 
 from workbench.errors import WorkbenchError
 from workbench.estimation.angles import wrap
-from workbench.experiments import diagnosis, truthfree
-from workbench.experiments.bootstrap import ITERATED
 from workbench.experiments.omni.evaluate import on_grid
 from workbench.experiments.omni.scenario import OmniData
+from workbench.metrics import diagnosis, truthfree
+from workbench.metrics.bootstrap import ITERATED
 
 FACTOR_RANGE = (0.1, 10.0)
 """An identified noise factor outside this is taken at its end (a run-away variance component)."""
@@ -45,7 +45,7 @@ takes the rest from the last two)."""
 
 
 def reference(result: Any) -> tuple[str, Any]:
-    """The run's smoother (:func:`~workbench.experiments.truthfree.smoother`) and its estimate; a
+    """The run's smoother (:func:`~workbench.metrics.truthfree.smoother`) and its estimate; a
     one-line error where the run has none with a map."""
     name = truthfree.smoother(result.estimators, result.estimates)
     est = result.estimates.get(name) if name else None
@@ -56,7 +56,7 @@ def reference(result: Any) -> tuple[str, Any]:
 
 def _one_step(est: Any) -> dict[str, float]:
     """One step of variance component estimation from the smoother's residuals (the diagnosis's
-    factors, :func:`workbench.experiments.diagnosis.components`, without the rest of its fits):
+    factors, :func:`workbench.metrics.diagnosis.components`, without the rest of its fits):
     ``odometry``, ``bearings`` (1 where not identified, or too few rows to say)."""
     from workbench.experiments.omni.metrics import NOISE_GROUPS
 
@@ -78,8 +78,6 @@ def factors(result: Any, cfg: Any) -> dict[str, float]:
     *Parameter Estimation and Hypothesis Testing in Linear Models*, sec. 3.6.3: the estimate is
     unbiased only at the true weights; on the paper's simulation with the odometry assumed 3x too
     wide, one step says 1.5x); the fixed point is the components' maximum likelihood (REML)."""
-    from workbench.experiments import get
-
     name, est = reference(result)
     logs = {g: math.log(v) for g, v in _one_step(est).items()}
     steps = [dict(logs)]
@@ -89,7 +87,7 @@ def factors(result: Any, cfg: Any) -> dict[str, float]:
         told = dataclasses.replace(
             cfg, assume_odometry_scale=(cfg.assume_odometry_scale or 1.0) * math.exp(logs["odometry"]),
             assume_bearing_scale=(cfg.assume_bearing_scale or 1.0) * math.exp(logs["bearings"]))
-        again = get("omni").estimate(result.data, told, [result.estimators[name]])[0].get(name)
+        again = result.experiment.estimate(result.data, told, [result.estimators[name]])[0].get(name)
         if again is None:
             break
         step = {g: math.log(v) for g, v in _one_step(again).items()}

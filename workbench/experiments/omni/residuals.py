@@ -1,5 +1,5 @@
 """A graph smoother's residuals at its answer, by group, for the truth-free diagnosis
-(:class:`~workbench.estimation.consistency.Residuals`, :mod:`workbench.experiments.diagnosis`).
+(:class:`~workbench.estimation.consistency.Residuals`, :mod:`workbench.metrics.diagnosis`).
 
 Rows: each odometry factor between keyframes (3 dof, its squared whitened residual at the answer)
 and each bearing of a landmark in the map (1 dof, ``(wrap(z - h(x)) / sigma)^2`` at the answer,

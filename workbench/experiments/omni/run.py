@@ -14,16 +14,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from workbench.core import experiment as contract
+from workbench.core.estimator import Estimator
 from workbench.errors import require
-from workbench.experiments import contract
-from workbench.experiments.estimator import Estimator
 from workbench.experiments.omni.config import OmniConfig
 from workbench.experiments.omni.scenario import OmniData, keyframe_steps, simulate
 
 
 @dataclass
 class RunResult(contract.RunResult):
-    """One run (:class:`~workbench.experiments.contract.RunResult`) and its image stage, if any."""
+    """One run (:class:`~workbench.core.experiment.RunResult`) and its image stage, if any."""
 
     images: object | None = None  # the image stage (``from_images``): images.ImageStage
 
@@ -91,7 +91,7 @@ logarithm: a factor of 30 either way reaches 0.07 % and the 50 % cap)."""
 
 
 def tunable(data: OmniData, cfg: OmniConfig) -> tuple[str, dict[str, float], dict[str, str]]:
-    """What ``--tune-noise`` tunes (:mod:`workbench.tuning.selftune`): by the EKF's likelihood of the
+    """What ``--tune-noise`` tunes (:mod:`workbench.core.selftune`): by the EKF's likelihood of the
     bearings, the odometry's noise and the bearings', from the data's own values (config units);
     and what it leaves, with why. Where the data state a noise per row (increments' covariances, a
     log's sigma per bearing) a factor on what they state is tuned (``odometry_scale``,
@@ -124,7 +124,7 @@ BEARING = ("bearing_scale", "sigma_bearing_deg")
 
 def components(data: OmniData, cfg: OmniConfig, values: dict[str, float]) -> tuple[str, dict[str, list[str]]]:
     """The smoother whose residuals' variance components check ``--tune-noise``'s values
-    (:func:`workbench.tuning.selftune.vce`), and which tuned values scale each of its residual
+    (:func:`workbench.core.selftune.vce`), and which tuned values scale each of its residual
     groups' noise (:mod:`.residuals`: the odometry between keyframes, the bearings)."""
     return "gtsam-batch", {"odometry": [k for k in values if k in ODOMETRY],
                            "bearing": [k for k in values if k in BEARING]}
@@ -159,14 +159,12 @@ def with_stage(cfg: OmniConfig, run: int, record: bool = False) -> tuple[OmniDat
     return data, stage
 
 
-def run_once(cfg: OmniConfig, run: int, estimators: list[Estimator], record: bool = False,
+def run_once(exp: contract.Experiment, cfg: OmniConfig, run: int, estimators: list[Estimator], record: bool = False,
              threads: int = 1) -> RunResult:
     """One run; ``record`` keeps what the recording draws (the image stage's frames,
     initialisation attempts, the graph's map through time)."""
-    from workbench.experiments.omni.experiment import EXPERIMENT
-
     data, stage = with_stage(cfg, run, record)
-    return contract.run_estimators(EXPERIMENT, cfg, run, estimators, data, record, threads, images=stage)
+    return contract.run_estimators(exp, cfg, run, estimators, data, record, threads, images=stage)
 
 
 def write_log(data: OmniData, folder, force: bool = False) -> list:

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
-from workbench.experiments import textfile
+from workbench.io import text as textfile
 from workbench.recording.stream import check_plain_output, write_text_atomic
 
 
@@ -26,7 +26,7 @@ def format_tum(t: np.ndarray, pose: np.ndarray) -> str:
 
 def read_tum(path: Path, repairs: dict[str, int] | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Times and planar poses ``(x, y, phi)`` back from a TUM file, through the shared text reader
-    (:mod:`workbench.experiments.textfile`: ``#`` comments; a text export's quirks repaired, counted
+    (:mod:`workbench.io.text`: ``#`` comments; a text export's quirks repaired, counted
     in ``repairs`` as ``tum_*``, said in a warning)."""
     tab = textfile.table(Path(path), "tum", {} if repairs is None else repairs, separator=textfile.WHITESPACE,
                          comments="#")

@@ -5,8 +5,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
+from workbench.config.settings import Config, Option, Scenario, apply_scenario, by_scenario, check_assumed
 from workbench.errors import require
-from workbench.experiments.settings import Config, Option, Scenario, apply_scenario, by_scenario, check_assumed
 
 SCENARIOS: dict[str, Scenario] = {s.name: s for s in (
     Scenario("paper", "the spec's reading of Table 1: a 3 m mast, 72 s, the target at 0.1 m/s^2"),
@@ -91,7 +91,7 @@ class SeaConfig(Config):
         return int(round(self.duration / self.dt)) + 1
 
     def memory_bytes(self) -> tuple[float, str]:
-        """The memory a run will need (for :mod:`workbench.experiments.limits`): measured at
+        """The memory a run will need (for :mod:`workbench.config.checks`): measured at
         ~20 kB a step for the six estimators of one run (0.24 GB at 720 steps, 0.29 GB at 3600),
         plus ~0.5 kB a step for each run's summary the parent keeps."""
         steps = self.duration / self.dt + 1

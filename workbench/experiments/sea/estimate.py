@@ -77,8 +77,8 @@ def from_angles(name: str, data: SeaData, alpha: np.ndarray, beta: np.ndarray, *
 def check(est: Estimate, data: SeaData, cfg, estimator) -> Estimate:
     """An estimator's answer against this type's contract (shapes, whole-row NaNs, PSD
     covariances); the angles and range derived from the position where left out; the name set.
-    Raises :class:`~workbench.experiments.estimator.EstimateError` naming what is wrong."""
-    from workbench.experiments.estimator import EstimateError, as_array, psd, whole_rows
+    Raises :class:`~workbench.core.estimator.EstimateError` naming what is wrong."""
+    from workbench.core.estimator import EstimateError, as_array, psd, whole_rows
 
     if not isinstance(est, Estimate):
         raise EstimateError(f"returned {type(est).__name__}, not a sea Estimate")

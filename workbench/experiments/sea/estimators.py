@@ -2,13 +2,13 @@
 
 Each runner is ``(data, cfg[, ctx]) -> Estimate`` and imports its module when first run, so the
 table costs nothing to read. Adding a built-in is one module with such a function and one row
-here naming it as ``"module:function"`` (as ``ekf``); a researcher's own goes beside these
-without touching the package (:mod:`workbench.experiments.estimator`).
+here naming it; a researcher's own goes beside these
+without touching the package (:mod:`workbench.core.estimator`).
 """
 
 from __future__ import annotations
 
-from workbench.experiments.estimator import Estimator, RunContext, table
+from workbench.core.estimator import Estimator, RunContext, table
 from workbench.experiments.sea.config import SeaConfig
 from workbench.experiments.sea.estimate import Estimate
 from workbench.experiments.sea.scenario import SeaData
@@ -30,6 +30,12 @@ def window_rls(data: SeaData, cfg: SeaConfig, ctx: RunContext) -> Estimate:
     from workbench.experiments.sea.algorithms import ar_filter
 
     return ar_filter.estimate(data, cfg, windowed=True)
+
+
+def ekf(data: SeaData, cfg: SeaConfig) -> Estimate:
+    from workbench.experiments.sea.algorithms import ekf
+
+    return ekf.estimate(data, cfg)
 
 
 def factors(data: SeaData, cfg: SeaConfig, ctx: RunContext):
@@ -61,7 +67,7 @@ TABLE: dict[str, Estimator] = table(
               causal=True, covariances=False),
     Estimator("window-rls", window_rls, (0, 210, 200), "algorithm 3: sliding-window diffuse RLS on the AR models",
               causal=True, covariances=False),
-    Estimator("ekf", "workbench.experiments.sea.algorithms.ekf:estimate", (230, 70, 70),
+    Estimator("ekf", ekf, (230, 70, 70),
               "EKF on a constant-velocity target (the paper's reference [8])", causal=True, covariances=True),
     Estimator("gtsam", gtsam_batch, (190, 90, 240), "GTSAM LM smoother over the whole run (uses the future)",
               causal=False, covariances=True),

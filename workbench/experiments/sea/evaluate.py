@@ -10,20 +10,23 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
+from typing import Any
 
 import numpy as np
 
+from workbench.core.experiment import RunSummary as Summary
 from workbench.estimation import metrics
 from workbench.estimation.angles import to_arcmin, wrap
-from workbench.experiments import figures, metric, truthfree
-from workbench.experiments.contract import RunSummary as Summary
 from workbench.experiments.sea import bounds as sea_bounds
 from workbench.experiments.sea.config import ALL_SHIPS, SeaConfig
 from workbench.experiments.sea.estimate import Estimate
 from workbench.experiments.sea.metrics import QUANTITIES, RENAMED, bounds, errors
 from workbench.experiments.sea.paper import TABLE2
-from workbench.experiments.sea.run import RunResult, run_once
+from workbench.experiments.sea.run import RunResult
 from workbench.experiments.sea.scenario import SeaData
+from workbench.metrics import base as metric
+from workbench.metrics import statistics as figures
+from workbench.metrics import truthfree
 
 
 @dataclass
@@ -139,12 +142,12 @@ def impulse_transient(result: RunResult, errs: dict[str, np.ndarray], cfg: SeaCo
     the same seed and run is the identical run, undisturbed; the difference of the two
     errors is the transient, free of the ordinary noise.
     """
-    clean = run_once(replace(cfg, scenario="paper"),
-                     run, [e for n, e in result.estimators.items() if n not in TRANSIENT_SKIP and n in errs])
+    rerun = [e for n, e in result.estimators.items() if n not in TRANSIENT_SKIP and n in errs]
+    clean = result.experiment.run_once(replace(cfg, scenario="paper"), run, rerun)
     return {n: errs[n][:, 2] - errors(clean.data, e)[:, 2] for n, e in clean.estimates.items()}
 
 
-def statistics(cfg: SeaConfig, runs: list[RunSummary], stats: dict) -> None:
+def statistics(exp: Any, cfg: SeaConfig, runs: list[RunSummary], stats: dict) -> None:
     """What the metrics JSON holds beyond the metrics (Table 2's figures are metrics): the steps,
     the units, the paper's Table 2, and per estimator the bound it is held to, the impulse's
     transient, the errors during a track loss and the forecasts; the image stage, what reading
@@ -175,24 +178,18 @@ def statistics(cfg: SeaConfig, runs: list[RunSummary], stats: dict) -> None:
     if runs[0].repairs:
         stats["data_repairs"] = dict(runs[0].repairs)
     if cfg.scenario == "ais" and cfg.mmsi == ALL_SHIPS:
-        stats.update(ship_statistics(cfg, runs))
+        stats.update(ship_statistics(cfg, exp.metrics(cfg), runs))
     if runs[0].simulated is not None:
-        found = figures.statistics(_metrics(cfg), [r.simulated for r in runs])
+        found = figures.statistics(exp.metrics(cfg), [r.simulated for r in runs])
         stats["simulated"] = figures.add_renamed({"note": "the same runs' estimators on the simulated angles",
                                                   "estimators": found}, RENAMED)
-
-
-def _metrics(cfg: SeaConfig) -> list[metric.Metric]:
-    from workbench.experiments.sea.experiment import EXPERIMENT
-
-    return EXPERIMENT.metrics(cfg)
 
 
 SHIP_FIGURES = ("position_rmse", "rmse_x", "rmse_y", "rmse_alpha", "rmse_beta")
 """The per-ship figures summarised over ships: position RMSE and the RMSE of x, y (m), alpha, beta (arcmin)."""
 
 
-def ship_statistics(cfg: SeaConfig, runs: list[RunSummary]) -> dict:
+def ship_statistics(cfg: SeaConfig, metrics: list[metric.Metric], runs: list[RunSummary]) -> dict:
     """``--mmsi all``: each ship's figures over its own runs (as ``--mmsi <ship>`` gives them),
     the median and the worst ship per estimator and figure, and the ships left out with the reason.
 
@@ -208,7 +205,7 @@ def ship_statistics(cfg: SeaConfig, runs: list[RunSummary]) -> dict:
     keep = ("position_rmse", *(f"{g}_{q}" for g in ("rmse", "bias") for q in QUANTITIES))
     ships = {}
     for mmsi, rs in groups.items():
-        found = figures.statistics(_metrics(cfg), [r.metrics for r in rs])
+        found = figures.statistics(metrics, [r.metrics for r in rs])
         entries = {name: {k: e[k] for k in keep if k in e} for name, e in found.items()}
         renamed = {old: new for old, new in RENAMED.items() if old.split(".")[0] in ("rmse", "bias")}
         ships[str(mmsi)] = {"label": rs[0].label, "runs": len(rs),

@@ -1,10 +1,12 @@
 """The sea experiment (paper 002) as the workbench sees it: the one object the CLI, the demo,
-the Python API and the sweeps use. The flow goes to this package's role modules
-(``run``, ``evaluate``, ``report``, ``record``, ``estimate``, ``estimators``) by name."""
+the Python API and the sweeps use. Its parts (``run``, ``evaluate``, ``report``,
+``record``, ``estimate``, ``estimators``) are declared in ``declare()``."""
 
 from __future__ import annotations
 
-from workbench.experiments.contract import Demo, Experiment, Preset
+from workbench.core import parts
+from workbench.core.experiment import Demo, Experiment, Preset
+from workbench.core.parts import Parts
 from workbench.experiments.sea.config import OPTIONS, SCENARIOS, SeaConfig
 from workbench.experiments.sea.estimate import Estimate
 from workbench.experiments.sea.scenario import SeaData
@@ -39,6 +41,19 @@ class Sea(Experiment):
     paper_notes = {"rmse_x": "paper's Table 2: geometric 20.7 m, rls 16.9 m (scenario paper)",
                    "rmse_y": "paper's Table 2: geometric 31 m, rls 25.2 m (scenario paper)",
                    "rmse_alpha": "paper's Table 2: geometric 0.88', rls 0.57' (scenario paper)"}
+
+    def declare(self) -> Parts:
+        """The sea package's parts."""
+        from workbench.experiments.sea import estimate, estimators, evaluate, metrics, record, report, resample, run
+
+        return parts.declare(
+            self.name, make_data=run.make_data, check=estimate.check, estimators=estimators.TABLE,
+            metrics=metrics.METRICS, assumed=run.assumed, result_type=run.RunResult, run_once=run.run_once,
+            run_count=run.run_count, grid_values=run.grid_values, write_log=run.write_log, tunable=run.tunable,
+            resample=resample.resample, bootstrap_nees=metrics.BOOTSTRAP_NEES, summarise=evaluate.summarise,
+            statistics=evaluate.statistics, report=report.table, table_columns=metrics.TABLE,
+            bounds=metrics.BOUNDS, renamed=metrics.RENAMED, noise_groups=metrics.NOISE_GROUPS,
+            layout=record.layout, record_run=record.record_run, record_runs=record.record_runs)
 
 
 EXPERIMENT = Sea()

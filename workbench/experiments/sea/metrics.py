@@ -1,4 +1,4 @@
-"""The sea experiment's metrics (:mod:`workbench.experiments.metric`): each a function of a run's
+"""The sea experiment's metrics (:mod:`workbench.metrics.base`): each a function of a run's
 dataset and one estimate, per step, errors ``truth - estimate`` in x, y (m), the azimuth alpha
 and elevation beta (arcmin, alpha wrapped) and the range (m).
 
@@ -13,13 +13,13 @@ import numpy as np
 from workbench.estimation import consistency
 from workbench.estimation import metrics as em
 from workbench.estimation.angles import to_arcmin, wrap
-from workbench.experiments import truthfree
-from workbench.experiments.metric import Metric, MetricContext, Values
 from workbench.experiments.sea import bounds as sea_bounds
 from workbench.experiments.sea import geometry
 from workbench.experiments.sea.config import SeaConfig
 from workbench.experiments.sea.estimate import Estimate
 from workbench.experiments.sea.scenario import SeaData
+from workbench.metrics import truthfree
+from workbench.metrics.base import Metric, MetricContext, Values
 
 QUANTITIES = ("x", "y", "alpha", "beta", "range")
 UNITS = {"x": "m", "y": "m", "alpha": "arcmin", "beta": "arcmin", "range": "m", "position": "m"}
@@ -93,7 +93,7 @@ def disagreement(data: SeaData, est: Estimate, ctx: MetricContext) -> Values | N
 def smoother_gap(data: SeaData, est: Estimate, ctx: MetricContext) -> Values | None:
     """A causal estimator's position against the run's smoother's at each step, normalised by the
     sum of their covariances (2 dof; truth-free): beyond chi-square's 99.9 % point over most of the
-    run, the two are in different basins (:mod:`workbench.experiments.diagnosis`)."""
+    run, the two are in different basins (:mod:`workbench.metrics.diagnosis`)."""
     ref = truthfree.reference(ctx)
     if ref is None or est.covariance is None or ctx.estimates[ref].covariance is None:
         return None
@@ -203,10 +203,10 @@ METRICS: tuple[Metric, ...] = (
 """Every sea metric; the results table shows :data:`TABLE` (each with its spread over runs)."""
 
 BOOTSTRAP_NEES = "anees"
-"""The NEES the parametric bootstrap reads on each resample (:mod:`workbench.experiments.bootstrap`)."""
+"""The NEES the parametric bootstrap reads on each resample (:mod:`workbench.metrics.bootstrap`)."""
 
 NOISE_GROUPS = {"state": "acceleration", "measurement": "angles", "motion": "acceleration", "angle": "angles"}
-"""What the diagnosis (:mod:`workbench.experiments.diagnosis`) calls the noise groups: a filter's
+"""What the diagnosis (:mod:`workbench.metrics.diagnosis`) calls the noise groups: a filter's
 state uncertainty is the target's acceleration noise, its measurement noise the angles'."""
 
 TABLE = ("rmse_x", "rmse_y", "rmse_alpha", "rmse_beta", "bias_x", "bias_y", "bias_alpha", "bias_beta", "seconds")

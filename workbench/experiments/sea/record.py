@@ -25,11 +25,11 @@ import rerun.blueprint as rrb
 
 from workbench.estimation import metrics
 from workbench.estimation.angles import to_arcmin
-from workbench.experiments import plots as metric_plots
-from workbench.experiments import truthfree
 from workbench.experiments.sea import metrics as sea_metrics
 from workbench.experiments.sea.evaluate import RunSummary, bound_variances
 from workbench.experiments.sea.run import RunResult
+from workbench.metrics import curves as metric_plots
+from workbench.metrics import truthfree
 from workbench.recording import draw
 from workbench.recording import layout as views
 

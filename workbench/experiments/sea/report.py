@@ -5,9 +5,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from workbench.experiments import markdown
 from workbench.experiments.sea.metrics import BOUNDS, METRICS, TABLE
 from workbench.experiments.sea.paper import TABLE2
+from workbench.metrics import tables as markdown
 
 
 def table(stats: dict) -> str:

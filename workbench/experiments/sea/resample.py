@@ -1,5 +1,5 @@
 """Datasets simulated from a run's own answer: the sea side of the parametric bootstrap
-(:mod:`workbench.experiments.bootstrap`; Efron and Tibshirani 1993, ch. 6).
+(:mod:`workbench.metrics.bootstrap`; Efron and Tibshirani 1993, ch. 6).
 
 The truth of a resample:
 
@@ -12,7 +12,7 @@ The truth of a resample:
 * the angles (1)-(2) from that camera to that object at the steps the data saw it, with the told
   noise times the identified factor; no impulse.
 
-The factors: the run's EKF's diagnosis (:mod:`workbench.experiments.diagnosis`), which tells the
+The factors: the run's EKF's diagnosis (:mod:`workbench.metrics.diagnosis`), which tells the
 acceleration's share of its innovations from the angles' (1 where it does not identify one, or the
 run has no EKF). The resample states the data's own noise, so the config's assumptions apply to it
 as they did to the data.
@@ -26,9 +26,9 @@ from typing import Any
 import numpy as np
 
 from workbench.errors import WorkbenchError
-from workbench.experiments import diagnosis, truthfree
 from workbench.experiments.sea import geometry
 from workbench.experiments.sea.scenario import SeaData
+from workbench.metrics import diagnosis, truthfree
 
 FACTOR_RANGE = (0.1, 10.0)
 """An identified noise factor outside this is taken at its end."""

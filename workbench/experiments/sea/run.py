@@ -13,10 +13,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from workbench.config import settings
+from workbench.core import experiment as contract
+from workbench.core.estimator import Estimator, RunContext, estimate_all
 from workbench.errors import require
 from workbench.estimation.angles import from_arcmin
-from workbench.experiments import contract, settings
-from workbench.experiments.estimator import Estimator, RunContext, estimate_all
 from workbench.experiments.sea.config import ALL_SHIPS, SeaConfig
 from workbench.experiments.sea.estimate import Estimate, check
 from workbench.experiments.sea.scenario import SeaData, simulate
@@ -24,7 +25,7 @@ from workbench.experiments.sea.scenario import SeaData, simulate
 
 @dataclass
 class RunResult(contract.RunResult):
-    """One run (:class:`~workbench.experiments.contract.RunResult`) and, with ``from_images``, its
+    """One run (:class:`~workbench.core.experiment.RunResult`) and, with ``from_images``, its
     image stage and the same run's estimates on the simulated angles."""
 
     images: object | None = None                  # the image stage (``from_images``): imaging.stage.ImageStage
@@ -101,20 +102,18 @@ def grid_values(name: str, values: tuple, scenario: str | None, fixed: dict) -> 
     return out, [f"ship {m} skipped: {why}" for m, why in skipped.items()]
 
 
-def run_once(cfg: SeaConfig, run: int, estimators: list[Estimator], record: bool = False,
+def run_once(exp: contract.Experiment, cfg: SeaConfig, run: int, estimators: list[Estimator], record: bool = False,
              threads: int = 1) -> RunResult:
     """One run: every estimator on the same data, each estimate checked (:func:`.estimate.check`).
     ``record``: the recorded run (covariances from the smoothers, the frames kept)."""
-    from workbench.experiments.sea.experiment import EXPERIMENT
-
     data = make_data(cfg, run)
     if not cfg.from_images:
-        return contract.run_estimators(EXPERIMENT, cfg, run, estimators, data, record, threads)
+        return contract.run_estimators(exp, cfg, run, estimators, data, record, threads)
     from workbench.experiments.sea.imaging import stage as images
 
     stage = images.measure(data, cfg, run, record)
     img = images.from_stage(data, stage)
-    res = contract.run_estimators(EXPERIMENT, cfg, run, estimators, img, record, threads, images=stage,
+    res = contract.run_estimators(exp, cfg, run, estimators, img, record, threads, images=stage,
                                   scenario_seen=data.seen)
     sim, failed_sim = estimate_all(estimators, assumed(data, cfg), cfg, RunContext(run, False), check)
     res.failed = {**failed_sim, **res.failed}
@@ -144,7 +143,7 @@ likelihood by what a 6 % change of the total would, which the data cannot tell f
 
 
 def tunable(data: SeaData, cfg: SeaConfig) -> tuple[str, dict[str, float], dict[str, str]]:
-    """What ``--tune-noise`` tunes (:mod:`workbench.tuning.selftune`): by the EKF's likelihood, the
+    """What ``--tune-noise`` tunes (:mod:`workbench.core.selftune`): by the EKF's likelihood, the
     object's acceleration noise and each angle's own noise where the data identify it, from the
     data's own values (config units); and what it leaves, with why.
 

@@ -1,5 +1,5 @@
 """``workbench measure``: the terrain experiment's own command (declared in its
-:class:`~workbench.experiments.contract.Command` row; the CLI and ``workbench.measure`` find it
+:class:`~workbench.core.experiment.Command` row; the CLI and ``workbench.measure`` find it
 in the registry), measuring in a terrain run's halftone model folder."""
 
 from __future__ import annotations

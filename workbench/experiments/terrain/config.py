@@ -19,8 +19,8 @@ import math
 from dataclasses import dataclass
 from pathlib import Path
 
+from workbench.config.settings import Config, Option, Scenario, apply_scenario, by_scenario
 from workbench.errors import require
-from workbench.experiments.settings import Config, Option, Scenario, apply_scenario, by_scenario
 from workbench.loading import split_list
 
 # the ngi frames are 640 x 1152: a quarter of each side keeps their aspect and ~24 m pixels
@@ -108,7 +108,7 @@ class TerrainConfig(Config):
         return self.baseline / self.speed
 
     def memory_bytes(self) -> tuple[float, str]:
-        """The memory a synthetic run will need (for :mod:`workbench.experiments.limits`): the
+        """The memory a synthetic run will need (for :mod:`workbench.config.checks`): the
         DEM and the albedo raster over both footprints and the error margins (as
         :func:`~workbench.experiments.terrain.scenario.synthetic_scene` sizes them; a few float64
         arrays of each while they are made), and the ray casting's arrays per pixel. The real

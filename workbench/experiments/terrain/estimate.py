@@ -32,8 +32,8 @@ class Estimate:
 
 def check(est: Estimate, data, cfg, estimator) -> Estimate:
     """An estimator's answer against this type's contract: finite ``(2, 3)`` orientations, a
-    PSD covariance. Raises :class:`~workbench.experiments.estimator.EstimateError`."""
-    from workbench.experiments.estimator import EstimateError, as_array, psd
+    PSD covariance. Raises :class:`~workbench.core.estimator.EstimateError`."""
+    from workbench.core.estimator import EstimateError, as_array, psd
 
     if not isinstance(est, Estimate):
         raise EstimateError(f"returned {type(est).__name__}, not a terrain Estimate")

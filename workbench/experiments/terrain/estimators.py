@@ -14,7 +14,7 @@ the cells do not resolve the angles (:attr:`search.SearchResult.centre`).
 
 from __future__ import annotations
 
-from workbench.experiments.estimator import Estimator, RunContext, table
+from workbench.core.estimator import Estimator, RunContext, table
 from workbench.experiments.terrain.config import TerrainConfig
 from workbench.experiments.terrain.estimate import Estimate
 

@@ -10,16 +10,17 @@ by its ground error over image II (full resolution for the recorded run).
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
+from workbench.core.experiment import RunSummary as Summary
 from workbench.estimation.angles import wrap
-from workbench.experiments import metric
-from workbench.experiments.contract import RunSummary as Summary
 from workbench.experiments.terrain import navigation
 from workbench.experiments.terrain.config import TerrainConfig
 from workbench.experiments.terrain.metrics import ba_bound, ground_maps
 from workbench.experiments.terrain.run import RunResult
+from workbench.metrics import base as metric
 
 
 @dataclass
@@ -59,7 +60,7 @@ def summarise(res: RunResult, cfg: TerrainConfig, run: int) -> RunSummary:
                       dict(sc.extras.get("repairs") or {}), failed=dict(res.failed))
 
 
-def statistics(cfg: TerrainConfig, runs: list[RunSummary], stats: dict) -> None:
+def statistics(exp: Any, cfg: TerrainConfig, runs: list[RunSummary], stats: dict) -> None:
     """What the metrics JSON holds beyond the metrics: the error mode and its sizes, the units,
     the search's hypotheses and nodes and how often its winner is the true cell, each estimator's
     bound, and its position, attitude and ground errors over the navigation system's (``reduction``,

@@ -1,18 +1,27 @@
 """The terrain experiment (paper 001) as the workbench sees it: the one object the CLI, the
-demo, the Python API and the sweeps use. The flow goes to this package's role modules by
-name; here are its declarations (the paper's grid is the sweep preset ``paper-grid``) and the halftone
+demo, the Python API and the sweeps use. Its parts are declared in
+``declare()``; here are its declarations (the paper's grid is the sweep preset ``paper-grid``) and the halftone
 model's export (``--model``, :mod:`.model`)."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
+from workbench.core import parts
+from workbench.core.experiment import Command, Demo, Experiment, Preset
+from workbench.core.parts import Parts
 from workbench.errors import require
-from workbench.experiments.contract import Command, Demo, Experiment, Preset
 from workbench.experiments.terrain import grid
 from workbench.experiments.terrain.config import EXTRAS, OPTIONS, SCENARIOS, TerrainConfig
 from workbench.experiments.terrain.estimate import Estimate
 from workbench.experiments.terrain.scenario import TerrainData
+
+
+def _measure(which: str):
+    """``measure``'s command line or Python function, imported when first used."""
+    from workbench.experiments.terrain import commands
+
+    return getattr(commands, which)
 
 
 class Terrain(Experiment):
@@ -37,10 +46,9 @@ class Terrain(Experiment):
                {"size": grid.SIZES, "max_linear": grid.LINEAR, "max_angular": grid.ANGULAR,
                 "samples": grid.FUNCTIONALS},
                overrides={"hypotheses": "sample"}, estimators="navigation,recurrent-search,recurrent-search-refined",
-               report="workbench.experiments.terrain.grid:from_sweep"),
+               report=grid.from_sweep),
     )
-    commands = (Command("measure", "workbench.experiments.terrain.commands:measure_command",
-                        "workbench.experiments.terrain.commands:measure"),)
+    commands = (Command("measure", lambda: _measure("measure_command"), lambda: _measure("measure")),)
     headline = ("dr_fraction", "dx_fraction", "position_error")
     compared = ()
     paper_notes = {"dr_fraction": "paper (Fig. 3): mean radial error 40-60 % of the maximum after processing; "
@@ -48,6 +56,16 @@ class Terrain(Experiment):
                    "dx_fraction": "paper (Fig. 3): mean |dX| at most 40-60 % of the maximum; spread 6-16 % "
                    "(100x100), 4-13 % (200x200)"}
 
+    def declare(self) -> Parts:
+        """The terrain package's parts."""
+        from workbench.experiments.terrain import estimate, estimators, evaluate, metrics, record, report, run
+
+        return parts.declare(
+            self.name, make_data=run.make_data, check=estimate.check, estimators=estimators.TABLE,
+            metrics=metrics.METRICS, result_type=run.RunResult, write_log=run.write_log,
+            summarise=evaluate.summarise, statistics=evaluate.statistics, report=report.table,
+            table_columns=metrics.TABLE, bounds=metrics.BOUNDS, renamed=metrics.RENAMED, layout=record.layout,
+            record_run=record.record_run, record_runs=record.record_runs)
 
     def check_extras(self, cfg: TerrainConfig, extras: dict, force: bool) -> None:
         from workbench.experiments.terrain import model

@@ -29,12 +29,12 @@ from pathlib import Path
 import numpy as np
 
 from workbench.errors import WorkbenchError, require
-from workbench.experiments import logfiles
 from workbench.experiments.terrain import navigation
 from workbench.experiments.terrain.camera import Intrinsics
 from workbench.experiments.terrain.config import TerrainConfig
 from workbench.experiments.terrain.estimate import Estimate
 from workbench.experiments.terrain.scenario import Scene, TerrainData
+from workbench.io import logs as logfiles
 
 FORMAT = 1
 COLUMNS = ("exposure", "x_m", "y_m", "z_m", "psi_rad", "theta_rad", "gamma_rad")

@@ -1,4 +1,4 @@
-"""The terrain experiment's metrics (:mod:`workbench.experiments.metric`): each a function of a
+"""The terrain experiment's metrics (:mod:`workbench.metrics.base`): each a function of a
 run's dataset and one estimate, one value a run (the orientation of image II, the one the paper
 corrects; errors ``truth - estimate``): the position error (3D norm) and its components, the
 attitude error (the norm of the three angles), the halftone model's ground error, the paper's
@@ -13,11 +13,11 @@ import numpy as np
 
 from workbench.estimation import metrics as em
 from workbench.estimation.angles import wrap
-from workbench.experiments.metric import Metric, MetricContext, Values
 from workbench.experiments.terrain import halftone
 from workbench.experiments.terrain.config import TerrainConfig
 from workbench.experiments.terrain.estimate import Estimate
 from workbench.experiments.terrain.scenario import TerrainData
+from workbench.metrics.base import Metric, MetricContext, Values
 
 
 def _position(data: TerrainData, est: Estimate) -> np.ndarray:

@@ -9,7 +9,7 @@ frame missing, or the two files disagreeing beyond the csv's rounding is a one-l
 :class:`~workbench.errors.WorkbenchError` naming the file and the line (exit code 2). Tolerated:
 a missing ``camera_pos_ori.txt`` when the csv is there (the csv's orientation is used and a
 :class:`~workbench.errors.DataWarning` says so), and what a text export changes in the text but
-not in a value, read by the shared reader (:mod:`workbench.experiments.textfile`): a byte-order
+not in a value, read by the shared reader (:mod:`workbench.io.text`): a byte-order
 mark, blank lines at the end, a ``;`` separator with decimal commas (or a tab; in the text file
 ``,``), quoted fields, each counted (``<file stem>_<quirk>``, in the metrics' ``data_repairs``)
 and said in one warning line.
@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from workbench.errors import DataWarning, WorkbenchError, require
-from workbench.experiments import textfile
+from workbench.io import text as textfile
 
 TEXT = "camera_pos_ori.txt"
 CSV = "ngi_xyz_opk.csv"
@@ -63,7 +63,7 @@ def _fields(path: Path, n: int, line: str, fields: list[str], cut: bool) -> tupl
 def read(path: Path, repairs: dict[str, int] | None = None) -> dict[str, np.ndarray]:
     """Frame id -> ``(x, y, z, omega, phi, kappa)`` from either file (by its name: ``.csv`` is
     comma separated with a header line, anything else space separated), through the shared text
-    reader (:mod:`workbench.experiments.textfile`: its repairs counted in ``repairs`` under the
+    reader (:mod:`workbench.io.text`: its repairs counted in ``repairs`` under the
     file's stem, ``camera_pos_ori_bom``, ``ngi_xyz_opk_separator_semicolon``, ...)."""
     require(path.is_file(), f"orientation file not found: {path}")
     csv = path.suffix.lower() == ".csv"

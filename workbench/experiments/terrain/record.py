@@ -38,7 +38,6 @@ import rerun as rr
 import rerun.blueprint as rrb
 
 from workbench.errors import WorkbenchError
-from workbench.experiments.plots import narrow_tables
 from workbench.experiments.terrain.estimators import ITERATED, POSTERIOR, REFINED, SEARCH, TABLE
 from workbench.experiments.terrain.evaluate import RunSummary
 from workbench.experiments.terrain.metrics import truth_known
@@ -73,6 +72,7 @@ from workbench.experiments.terrain.record_search import (
     record_search,
 )
 from workbench.experiments.terrain.run import RunResult
+from workbench.metrics.curves import narrow_tables
 from workbench.recording import draw
 from workbench.recording import layout as views
 

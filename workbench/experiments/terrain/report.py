@@ -4,9 +4,9 @@ statistics, the Cramér-Rao bounds."""
 
 from __future__ import annotations
 
-from workbench.experiments import markdown
-from workbench.experiments.markdown import number as _f
 from workbench.experiments.terrain.metrics import BOUNDS, METRICS, TABLE
+from workbench.metrics import tables as markdown
+from workbench.metrics.tables import number as _f
 
 PAPER_CLAIMS = ("paper's claims (Fig. 3 and text): after processing, mean linear errors at most 40-60 % of the "
                 "maximum error (at least a 2x reduction); their spread 6-16 % (100x100) and 4-13 % (200x200) of it, "

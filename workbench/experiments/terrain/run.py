@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from workbench.experiments import contract
+from workbench.core import experiment as contract
 from workbench.experiments.terrain import navigation
 from workbench.experiments.terrain.config import TerrainConfig
 from workbench.experiments.terrain.estimate import Estimate
@@ -20,7 +20,7 @@ from workbench.experiments.terrain.scenario import Scene, TerrainData, synthetic
 
 @dataclass
 class RunResult(contract.RunResult):
-    """One run (:class:`~workbench.experiments.contract.RunResult`): its data, every estimate, the
+    """One run (:class:`~workbench.core.experiment.RunResult`): its data, every estimate, the
     search (where it ran), what failed; ``record``: the recorded run (full-resolution error maps)."""
 
     @property

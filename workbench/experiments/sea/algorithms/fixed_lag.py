@@ -23,7 +23,7 @@ import gtsam
 import numpy as np
 from gtsam.symbol_shorthand import P, V
 
-from workbench.experiments.estimator import RunContext, estimator
+from workbench.core.estimator import RunContext, estimator
 from workbench.experiments.sea import observer
 from workbench.experiments.sea.algorithms import smoother
 from workbench.experiments.sea.config import SeaConfig

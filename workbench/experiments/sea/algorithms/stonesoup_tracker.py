@@ -30,7 +30,7 @@ from stonesoup.types.hypothesis import SingleHypothesis
 from stonesoup.types.state import GaussianState
 from stonesoup.updater.kalman import ExtendedKalmanUpdater, UnscentedKalmanUpdater
 
-from workbench.experiments.estimator import estimator
+from workbench.core.estimator import estimator
 from workbench.experiments.sea import geometry, observer
 from workbench.experiments.sea.algorithms import ekf
 from workbench.experiments.sea.config import SeaConfig

@@ -35,7 +35,7 @@ from scipy.interpolate import PchipInterpolator
 
 from workbench.errors import WorkbenchError
 from workbench.estimation.angles import wrap
-from workbench.experiments import csvfile
+from workbench.io import csvfiles as csvfile
 from workbench.paths import data_file
 
 DEFAULT_FILE = "ais/SolentAIS_20160112_130211.csv"

@@ -36,9 +36,10 @@ from pathlib import Path
 import numpy as np
 
 from workbench.errors import WorkbenchError, require
-from workbench.experiments import csvfile, logfiles
 from workbench.experiments.sea import geometry
 from workbench.experiments.sea.scenario import SeaData
+from workbench.io import csvfiles as csvfile
+from workbench.io import logs as logfiles
 
 FORMAT = 1
 MANIFEST = ("height_m", "sigma_azimuth_rad", "sigma_elevation_rad", "sigma_observer_m", "sigma_acc_mps2")

@@ -37,7 +37,7 @@ import numpy as np
 from scipy.interpolate import PchipInterpolator
 
 from workbench.errors import WorkbenchError
-from workbench.experiments import csvfile
+from workbench.io import csvfiles as csvfile
 from workbench.paths import data_file
 
 DEFAULT_FILE = "ais/UAV_Rot.csv"
