@@ -60,7 +60,8 @@ def execute(exp, scenario: str | None, out: Path | None, force: bool, metrics: P
                       config=config,
                       extras=extras, progress=lambda done, total: bar.update(task, completed=done, total=total),
                       **overrides)
-    said = dict.fromkeys(str(w.message) for w in caught if issubclass(w.category, (LiveWarning, DataWarning, MovedWarning)))
+    told = (LiveWarning, DataWarning, MovedWarning)
+    said = dict.fromkeys(str(w.message) for w in caught if issubclass(w.category, told))
     for line in said:  # a real log is read once per run: each repair said once
         typer.echo(f"warning: {line}", err=True)
     if not quiet:

@@ -1,0 +1,55 @@
+"""Reading the answer out of iSAM2: a landmark's point and marginal, a pose's marginal, and the
+map as the recording draws it through time (only the landmarks seen since the last reading, all
+of them every ``MAP_FULL``-th reading and at the end)."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import gtsam
+import numpy as np
+from gtsam.symbol_shorthand import L
+
+JUMP_POSITION = 2.0
+
+
+MAP_FULL = 10
+"""Every how many map readings :func:`read_map` reads every landmark's marginal, not only the seen ones'."""
+
+
+def read_map(held: list[int], previous: np.ndarray, seen: np.ndarray, full: bool,
+             mean_of: Callable[[int], np.ndarray], cov_of: Callable[[int], np.ndarray]
+             ) -> tuple[np.ndarray, np.ndarray]:
+    """One reading of a smoother's map ``(N, 2)``, ``(N, 2, 2)``: the mean of every landmark ``held``;
+    the marginal of those ``seen`` since the last reading, of all where ``full``, and of any whose
+    ``previous`` one is not finite; the others' carried from ``previous``; NaN for what is not held.
+    ``seen`` is cleared. Why: landmark marginals cost more than an update (a Bayes-tree walk each);
+    read for the whole map every second, they took 13 of iSAM2's 17 s on a 1,400 s log and 29 of the
+    fixed-lag smoother's 30 s on a 7,000-pose drive (measured)."""
+    mean = np.full((len(previous), 2), np.nan)
+    cov = previous.copy()
+    for lm in held:
+        mean[lm] = mean_of(lm)
+        if full or seen[lm] or not np.isfinite(cov[lm]).all():
+            cov[lm] = cov_of(lm)
+    cov[~np.isfinite(mean[:, 0])] = np.nan
+    seen[:] = False
+    return mean, cov
+
+
+def _point_of(isam: gtsam.ISAM2, lm: int) -> np.ndarray:
+    return isam.calculateEstimatePoint2(L(lm))
+
+
+def _landmark_marginal(isam: gtsam.ISAM2 | None, lm: int) -> np.ndarray:
+    return _marginal(isam, L(lm), 2)
+
+
+def _marginal(isam: gtsam.ISAM2 | None, key: int, dim: int) -> np.ndarray:
+    """A variable's marginal covariance; NaN where iSAM2 cannot give it (or has given up)."""
+    if isam is None:
+        return np.full((dim, dim), np.nan)
+    try:
+        return isam.marginalCovariance(key)
+    except RuntimeError:
+        return np.full((dim, dim), np.nan)
