@@ -29,7 +29,7 @@ def _bounds(name: str, exp, cfg, result) -> float:
             b.variances(delay)
     elif name == "omni":
         from workbench.experiments.omni import bounds as ob
-        from workbench.experiments.omni import graph
+        from workbench.experiments.omni.algorithms import graph
 
         kf = result.keyframes if result.keyframes is not None else graph.keyframes(result.data, cfg)
         ob.variances(result.data, kf, {0.0, float("inf")})

@@ -40,7 +40,8 @@ import numpy as np
 from gtsam.symbol_shorthand import X
 
 from workbench import api
-from workbench.experiments.omni import ekf, faults, fixed_lag, graph
+from workbench.experiments.omni import faults
+from workbench.experiments.omni.algorithms import ekf, fixed_lag, graph
 
 DATA = Path(__file__).resolve().parents[1] / ".." / "shared" / "data"
 

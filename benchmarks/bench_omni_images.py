@@ -12,7 +12,7 @@ import time
 import numpy as np
 
 from workbench.experiments.omni.config import OmniConfig
-from workbench.experiments.omni.images import Extractor, MirrorCamera, Renderer
+from workbench.experiments.omni.imaging.stage import Extractor, MirrorCamera, Renderer
 from workbench.experiments.omni.scenario import simulate
 
 

@@ -24,8 +24,9 @@ import time  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-from workbench.experiments.terrain import navigation, search  # noqa: E402
+from workbench.experiments.terrain import navigation  # noqa: E402
 from workbench.experiments.terrain import scenario as scene  # noqa: E402
+from workbench.experiments.terrain.algorithms import search  # noqa: E402
 from workbench.experiments.terrain.config import TerrainConfig  # noqa: E402
 
 # flops per node and hypothesis of the linearisation, estimated by counting the operations in

@@ -88,7 +88,7 @@ def _turned(data, cfg, how: str):
     about the start, and from nothing else (no start of lower cost to fall back on)."""
     import numpy as np
 
-    from workbench.experiments.omni import graph
+    from workbench.experiments.omni.algorithms import graph
 
     kf = graph.keyframes(data, cfg)
     dr = kf.dead_reckoning.copy()

@@ -13,7 +13,7 @@ import pytest
 
 import workbench
 from workbench.estimation.alignment import umeyama
-from workbench.experiments.omni import tum
+from workbench.experiments.omni.readers import tum
 
 
 def test_umeyama_recovers_a_rigid_motion():

@@ -197,7 +197,7 @@ def test_terrain_bound_and_its_fisher_information():
     import workbench
     from workbench.core.registry import get
     from workbench.experiments.terrain import bounds as tb
-    from workbench.experiments.terrain import search as rs
+    from workbench.experiments.terrain.algorithms import search as rs
 
     for mode in ("common", "ii-only"):
         res = workbench.run("terrain", runs=4, mode=mode, size="100x100", levels_linear=3, levels_angular=1)
@@ -227,7 +227,7 @@ def test_omni_bounds_cover_a_gap_in_the_truth():
     from dataclasses import replace
 
     from workbench.experiments.omni import bounds as omni_bounds
-    from workbench.experiments.omni import graph
+    from workbench.experiments.omni.algorithms import graph
     from workbench.experiments.omni.config import OmniConfig
     from workbench.experiments.omni.scenario import simulate
 

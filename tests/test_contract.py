@@ -29,6 +29,8 @@ def test_every_experiment_has_the_same_files_for_the_same_roles():
     for name in REGISTRY:
         files = {p.stem for p in (PACKAGE / "experiments" / name).glob("*.py")}
         assert set(ROLES) <= files, (name, set(ROLES) - files)
+        # shaped alike: the estimators and the file readers in sub-packages of their own
+        assert all((PACKAGE / "experiments" / name / sub / "__init__.py").exists() for sub in ("algorithms", "readers"))
         exp = get(name)
         assert exp.name == name and set(exp.default_estimators) <= set(exp.estimators)
         assert all(e.experiment == name and e.ref == e.name and e.builtin for e in exp.estimators.values())

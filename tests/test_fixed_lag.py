@@ -9,9 +9,9 @@ import pytest
 
 import workbench
 from workbench.experiments.omni import evaluate as omni_eval
-from workbench.experiments.omni import fixed_lag as omni_fl
-from workbench.experiments.omni import graph
 from workbench.experiments.omni import run as omni_run
+from workbench.experiments.omni.algorithms import fixed_lag as omni_fl
+from workbench.experiments.omni.algorithms import graph
 from workbench.experiments.omni.config import OmniConfig
 from workbench.experiments.sea import run as sea_run
 from workbench.experiments.sea.algorithms import fixed_lag as sea_fl

@@ -546,7 +546,7 @@ def test_an_orientation_in_utf16_is_read_with_its_bom_and_one_line_without(tmp_p
     """A spreadsheet's "Unicode text" (UTF-16 with a byte-order mark) is read and counted; UTF-16
     without one cannot be told from binary data: one line naming the file and the line."""
     from workbench.errors import DataWarning
-    from workbench.experiments.terrain import ngi_orientation
+    from workbench.experiments.terrain.readers import ngi_orientation
 
     path = tmp_path / ngi_orientation.TEXT
     path.write_bytes("3324c_2015_1004_05_0182_RGB 1 2 3 0 0 0\n".encode("utf-16"))
@@ -578,7 +578,7 @@ def test_isam2_giving_up_is_an_answer_not_a_crash(monkeypatch):
     """When iSAM2 and the LM passes that rebuild it all throw (GTSAM's "indeterminate system"),
     the solver is dropped: the answer is the odometry carried on, the covariances NaN (unknown),
     the failures counted; reading its marginals and map no longer crashes."""
-    from workbench.experiments.omni import graph
+    from workbench.experiments.omni.algorithms import graph
     from workbench.experiments.omni.config import OmniConfig
     from workbench.experiments.omni.scenario import simulate
 

@@ -16,7 +16,8 @@ import warnings
 import numpy as np
 
 from workbench import api
-from workbench.experiments.omni import faults, graph
+from workbench.experiments.omni import faults
+from workbench.experiments.omni.algorithms import graph
 
 
 def _drive(tmp_path, scale: float):

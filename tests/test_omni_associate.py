@@ -9,9 +9,9 @@ from dataclasses import replace
 
 import numpy as np
 
-from workbench.experiments.omni import associate as assoc
-from workbench.experiments.omni import ekf, graph
+from workbench.experiments.omni.algorithms import ekf, graph
 from workbench.experiments.omni.config import OmniConfig
+from workbench.experiments.omni.imaging import associate as assoc
 from workbench.experiments.omni.run import with_stage
 from workbench.experiments.omni.scenario import observe, simulate
 

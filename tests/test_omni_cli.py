@@ -9,7 +9,7 @@ import pytest
 from launcher import DATA, cli, wb
 
 import workbench
-from workbench.experiments.omni import tum
+from workbench.experiments.omni.readers import tum
 from workbench.recording import readback
 
 ALL = ("odometry", "ekf-paper", "ekf", "isam2", "gtsam-batch")
@@ -288,8 +288,9 @@ def test_robot3_misreads_are_gated_and_the_smoother_holds():
     import warnings
 
     from workbench.estimation.angles import wrap
-    from workbench.experiments.omni import graph, real
+    from workbench.experiments.omni.algorithms import graph
     from workbench.experiments.omni.config import make_config
+    from workbench.experiments.omni.readers import real
 
     cfg = make_config("mrclam", robot=3, data=DATA / "mrclam6").validate()
     with warnings.catch_warnings():

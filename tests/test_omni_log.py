@@ -172,7 +172,7 @@ def test_odometry_as_relative_pose_increments_gives_the_same_estimates(tmp_path)
     with their covariances is the same motion, so every estimator lands where it did from the
     paper's bicycle controls (to rounding; iSAM2's relinearisation thresholds amplify it). The
     paper's own EKF is left out: it diverges on this run, and a divergence amplifies anything."""
-    from workbench.experiments.omni import log
+    from workbench.experiments.omni.readers import log
 
     res, folder = _export(tmp_path, "paper", duration=60.0)
     back = _read_back(res, folder)
@@ -212,7 +212,7 @@ def test_a_noisy_position_fix_is_scored_with_its_noise(tmp_path):
     """A GPS-like track (a position every 5 s, 0.5 m noise per axis, ``sigma_m``): the errors at
     those times only, and the position NEES against the fix with its noise added to the estimate's
     covariance (chi-square 2 for a consistent estimator); the paper's EKF is caught by it too."""
-    from workbench.experiments.omni import log
+    from workbench.experiments.omni.readers import log
 
     res, folder = _export(tmp_path, "paper", duration=120.0)
     back = _read_back(res, folder)
@@ -242,7 +242,7 @@ def test_each_bearing_weighed_by_its_own_sigma(tmp_path):
     noisy, drawn so): every estimator weighs each by it. Against the same log read with one sigma
     (their RMS) the filter and the smoothers land closer, and the measurements are likelier under
     the filter (its NLL, truth-free, says which model of the noise the data prefer)."""
-    from workbench.experiments.omni import log
+    from workbench.experiments.omni.readers import log
 
     res, folder = _export(tmp_path, "paper", duration=120.0)
     d = _read_back(res, folder).data

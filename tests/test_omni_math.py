@@ -14,9 +14,11 @@ from workbench.errors import WorkbenchError
 from workbench.estimation import metrics, unscented
 from workbench.estimation.angles import wrap
 from workbench.estimation.metrics import chi2_quantile
-from workbench.experiments.omni import ekf, evaluate, graph, triangulation, tum
+from workbench.experiments.omni import evaluate
+from workbench.experiments.omni.algorithms import ekf, graph, triangulation
 from workbench.experiments.omni.config import OmniConfig, make_config
 from workbench.experiments.omni.motion import Motion
+from workbench.experiments.omni.readers import tum
 from workbench.experiments.omni.scenario import simulate, world
 from workbench.metrics import statistics as figures
 
@@ -170,7 +172,7 @@ def test_a_command_switching_at_an_unknown_time_is_the_mean_with_its_variance():
     """real.between: a command u0 replaced by u1 at a time uniform in the step runs, on average,
     (u0 + u1) / 2 with variance (u1 - u0)^2 / 12; checked against 200,000 drawn switch times, and
     the heading's variance through Motion.propagate against the drawn headings' variance."""
-    from workbench.experiments.omni.real import between
+    from workbench.experiments.omni.readers.real import between
 
     cmds = np.array([[0.086, 0.408], [0.0, 0.0], [0.0, 0.0], [0.07, -0.2]])
     mean, var = between(cmds)
@@ -321,7 +323,7 @@ def test_tum_round_trip(tmp_path):
 
 def test_round_image_lines_come_back_as_bearings():
     """Lines rendered at known bearings are extracted within 0.2 deg; bad frames give nothing."""
-    from workbench.experiments.omni.images import Extractor, MirrorCamera, Renderer
+    from workbench.experiments.omni.imaging.stage import Extractor, MirrorCamera, Renderer
 
     cam = MirrorCamera(size=320)
     renderer, extractor = Renderer(cam, np.random.default_rng(0)), Extractor(cam)
@@ -342,7 +344,7 @@ def test_round_image_lines_come_back_as_bearings():
 
 def test_image_stage_associates_without_ids():
     from workbench.experiments.omni.config import IMAGE_SIGMA_BEARING_DEG
-    from workbench.experiments.omni.images import MirrorCamera, run_stage
+    from workbench.experiments.omni.imaging.stage import MirrorCamera, run_stage
 
     cfg = OmniConfig(duration=60.0, sigma_bearing_deg=IMAGE_SIGMA_BEARING_DEG).validate()
     data = simulate(cfg, np.random.default_rng(2))

@@ -10,7 +10,7 @@ import pytest
 
 from workbench.errors import DataWarning, WorkbenchError
 from workbench.estimation.angles import wrap
-from workbench.experiments.omni import mrclam
+from workbench.experiments.omni.readers import mrclam
 from workbench.paths import data_root
 
 HEADER = ("# UTIAS Multi-Robot Cooperative Localization and Mapping Dataset\n"
@@ -368,7 +368,7 @@ def test_real_gaps_read_as_a_switch_at_an_unknown_time(real):
     sigma it predicts (the density's and the switch's), squared, averages near 1 on every robot;
     on robot 4, whose gaps carry a quarter of its distance, holding the command before a gap
     runs a third too far against the Vicon and the switch's mean within 10 %."""
-    from workbench.experiments.omni.real import between
+    from workbench.experiments.omni.readers.real import between
 
     log, _ = real
     t, cmds = log.odom_t, np.column_stack([log.odom_v, log.odom_w])

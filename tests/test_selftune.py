@@ -86,7 +86,7 @@ def test_the_contaminated_likelihood_charges_a_gated_bearing_as_an_outlier():
 
 def test_the_ekf_leaves_out_a_bearing_more_likely_an_outlier_than_not():
     from workbench.core.registry import get
-    from workbench.experiments.omni.ekf import BearingEkf
+    from workbench.experiments.omni.algorithms.ekf import BearingEkf
 
     exp = get("omni")
     cfg = exp.validate(exp.configure(duration=10, assume_outlier_rate=0.05))
@@ -203,7 +203,7 @@ def test_the_graphs_gate_is_the_outlier_models_where_one_is_assumed():
     from workbench.core.registry import get
     from workbench.estimation import outliers
     from workbench.estimation.metrics import chi2_quantile
-    from workbench.experiments.omni import graph
+    from workbench.experiments.omni.algorithms import graph
 
     exp = get("omni")
     s = np.array([1e-4, 4e-4])

@@ -7,10 +7,12 @@ import numpy as np
 import pytest
 from launcher import DATA
 
-from workbench.experiments.terrain import ba, camera, navigation, ngi
+from workbench.experiments.terrain import camera, navigation
 from workbench.experiments.terrain import dem as dem_mod
 from workbench.experiments.terrain import scenario as scene_mod
+from workbench.experiments.terrain.algorithms import ba
 from workbench.experiments.terrain.config import TerrainConfig
+from workbench.experiments.terrain.readers import ngi
 
 gtsam = pytest.importorskip("gtsam")
 from gtsam.symbol_shorthand import L, X  # noqa: E402

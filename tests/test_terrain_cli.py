@@ -10,8 +10,8 @@ from launcher import cli, wb
 
 from workbench.errors import WorkbenchError
 from workbench.experiments.terrain import dem as dem_mod
-from workbench.experiments.terrain import ngi
 from workbench.experiments.terrain.config import TerrainConfig
+from workbench.experiments.terrain.readers import ngi
 from workbench.paths import data_root
 from workbench.recording import readback
 
@@ -159,7 +159,7 @@ def test_ngi_bad_folders(tmp_path):
 def test_ngi_truth_is_photo_consistent():
     """The known orientation is the truth: image I warped into image II through the DEM fits
     better at it than 50 m away (the check that the OPK convention is read right)."""
-    from workbench.experiments.terrain import search
+    from workbench.experiments.terrain.algorithms import search
 
     cfg = TerrainConfig(scenario="ngi", size="160x288", mode="ii-only").validate()
     sc = ngi.load(cfg)

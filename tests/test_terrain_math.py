@@ -10,10 +10,12 @@ import pytest
 
 from workbench.errors import WorkbenchError
 from workbench.estimation import metrics
-from workbench.experiments.terrain import camera, dem, estimators, halftone, navigation, posterior, search
+from workbench.experiments.terrain import camera, dem, estimators, navigation
 from workbench.experiments.terrain import scenario as scene
+from workbench.experiments.terrain.algorithms import posterior, search
 from workbench.experiments.terrain.config import TerrainConfig
 from workbench.experiments.terrain.experiment import EXPERIMENT
+from workbench.experiments.terrain.products import halftone
 
 run_once = EXPERIMENT.run_once
 

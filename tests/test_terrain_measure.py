@@ -14,11 +14,12 @@ from scipy.stats import chi2
 
 from workbench import api
 from workbench.errors import WorkbenchError
-from workbench.experiments.terrain import camera, halftone
-from workbench.experiments.terrain import measure as ms
-from workbench.experiments.terrain import model as tm
+from workbench.experiments.terrain import camera
 from workbench.experiments.terrain.camera import Intrinsics
 from workbench.experiments.terrain.dem import Dem
+from workbench.experiments.terrain.products import halftone
+from workbench.experiments.terrain.products import measure as ms
+from workbench.experiments.terrain.products import model as tm
 from workbench.paths import data_root
 from workbench.recording import readback
 

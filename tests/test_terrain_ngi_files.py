@@ -11,7 +11,7 @@ import pytest
 from launcher import DATA, cli
 
 from workbench.errors import DataWarning, WorkbenchError
-from workbench.experiments.terrain import ngi, ngi_interior, ngi_orientation
+from workbench.experiments.terrain.readers import ngi, ngi_interior, ngi_orientation
 
 TEXT_ROWS = [  # the real file's first and last rows, and two made up
     ("3324c_2015_1004_05_0182_RGB", -55094.504480, -3727407.037480, 5258.307930, -0.349216, 0.298484, -179.086702),

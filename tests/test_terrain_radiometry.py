@@ -5,7 +5,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from workbench.experiments.terrain import navigation, radiometry, search
+from workbench.experiments.terrain import navigation
+from workbench.experiments.terrain.algorithms import radiometry, search
 from workbench.experiments.terrain.config import TerrainConfig
 from workbench.experiments.terrain.run import make_data
 

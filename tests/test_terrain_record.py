@@ -14,10 +14,11 @@ import pyarrow as pa
 import pytest
 from rerun.chunk import RrdReader
 
-from workbench.experiments.terrain import halftone, navigation, record, run
 from workbench.experiments.terrain import metrics as terrain_metrics
+from workbench.experiments.terrain import navigation, record, run
 from workbench.experiments.terrain.config import TerrainConfig
 from workbench.experiments.terrain.experiment import EXPERIMENT
+from workbench.experiments.terrain.products import halftone
 from workbench.paths import data_root
 from workbench.recording import stream
 

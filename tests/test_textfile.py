@@ -24,9 +24,9 @@ from launcher import DATA, cli, wb
 import workbench
 from workbench.core.registry import get
 from workbench.errors import DataWarning, WorkbenchError
-from workbench.experiments.omni import mrclam
+from workbench.experiments.omni.readers import mrclam
 from workbench.experiments.sea.readers import ais, uav
-from workbench.experiments.terrain import ngi_orientation
+from workbench.experiments.terrain.readers import ngi_orientation
 from workbench.io import text as textfile
 
 NUMBER = re.compile(r"[+-]?(?:\d+\.\d*|\.\d+)(?:[eE][+-]?\d+)?")
@@ -293,11 +293,11 @@ def read_log(name: str, folder: Path):
         data = log.read(folder)
         return data, data.repairs
     if name == "omni":
-        from workbench.experiments.omni import log
+        from workbench.experiments.omni.readers import log
 
         data = log.read(folder, workbench.configure("omni", "log", data=folder))
         return data, data.repairs
-    from workbench.experiments.terrain import log
+    from workbench.experiments.terrain.readers import log
 
     data = log.read(folder, workbench.configure("terrain", "log", data=folder), 0)
     return data, data.scene.extras["repairs"]

@@ -1,9 +1,9 @@
 """The ``workbench`` launcher: a thin typer layer over :func:`workbench.api.run`.
 
 One command per registered experiment, built from its contract by one code path
-(:mod:`workbench.commands`), and the commands an experiment declares;
+(:mod:`workbench.experiment_command`), and the commands an experiment declares;
 plus ``list``, ``demo``, the tools (``view``, ``info``, ``replay``, ``screenshot``, ``compare``:
-:mod:`workbench.tools.commands`) and ``sweep`` / ``sweep-report`` (:mod:`workbench.sweeps.commands`).
+:mod:`workbench.tools.cli`) and ``sweep`` / ``sweep-report`` (:mod:`workbench.sweeps.cli`).
 Nothing here knows an experiment's settings.
 """
 
@@ -23,13 +23,14 @@ from pathlib import Path
 
 import typer
 
-from workbench import commands, loading
-from workbench.commands import RECORDINGS, execute
+from workbench import experiment_command as commands
+from workbench import loading
 from workbench.core import registry as experiments
 from workbench.errors import DataNotFound, WorkbenchError
-from workbench.sweeps import commands as sweep_commands
-from workbench.tools import commands as tool_commands
-from workbench.tuning import commands as tune_commands
+from workbench.experiment_command import RECORDINGS, execute
+from workbench.sweeps import cli as sweep_commands
+from workbench.tools import cli as tool_commands
+from workbench.tuning import cli as tune_commands
 
 app = typer.Typer(no_args_is_help=True, add_completion=False,
                   help="Estimation workbench: paper estimators against GTSAM, recorded to Rerun.")

@@ -16,7 +16,10 @@ import importlib
 import importlib.metadata
 import importlib.util
 import os
+import re
 import sys
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -119,3 +122,52 @@ def first_line(exc: BaseException) -> str:
 def split_list(text: str) -> tuple[str, ...]:
     """``"a, b,c"`` -> ``("a", "b", "c")``: a selection as the command line gives it."""
     return tuple(p.strip() for p in str(text).split(",") if p.strip())
+
+
+NAME_PATTERN = r"[A-Za-z0-9_][A-Za-z0-9_.-]*"
+"""A plugin's name: letters, digits and ``. _ -`` (what ``name=spec`` may call it)."""
+
+
+@dataclass(frozen=True)
+class Found:
+    """What an item of a selection named, before it is made an estimator's or a metric's row.
+
+    ``how``: ``"row"`` (already the row type), ``"function"`` (a Python function), ``"built-in"``
+    (``value`` the experiment's own row), ``"installed"`` (``value`` the entry point's object,
+    ``entry_point`` it), ``"spec"`` (``value`` the function a ``module:function`` or
+    ``file.py:function`` spec loads). ``name``: the ``name=`` given, if any; ``key``: the item as
+    named (the built-in's or installed name, or the spec)."""
+
+    how: str
+    value: Any
+    key: str = ""
+    name: str | None = None
+    entry_point: importlib.metadata.EntryPoint | None = None
+
+
+def resolve(item: Any, what: str, row_type: type, builtins: Mapping[str, Any],
+            installed: Mapping[str, importlib.metadata.EntryPoint], unknown: Callable[[str], str],
+            name_pattern: str = NAME_PATTERN) -> Found:
+    """One item of a selection, the same way for estimators and metrics: a row, a Python
+    function, or a string naming (optionally as ``name=...``) a built-in, an installed entry point
+    or a ``module:function`` / ``file.py:function`` spec. ``unknown(item)`` words the one-line
+    error for a string that names none of them; ``name_pattern`` what a ``name=`` may be."""
+    if isinstance(item, row_type):
+        return Found("row", item)
+    if callable(item):
+        return Found("function", item)
+    if not isinstance(item, str):
+        article = "an" if what[:1] in "aeiou" else "a"
+        raise WorkbenchError(f"{article} {what} is a name, a module:function spec or a function, not {item!r}")
+    text, name = item.strip(), None
+    named = re.fullmatch(rf"({name_pattern})=(.+)", text)
+    if named:
+        name, text = named.group(1), named.group(2).strip()
+    if text in builtins:
+        return Found("built-in", builtins[text], text, name)
+    if text in installed:
+        ep = installed[text]
+        return Found("installed", load_entry_point(ep, f"{what} {text!r}"), text, name, ep)
+    if ":" in text:
+        return Found("spec", load(text, what), text, name)
+    raise WorkbenchError(unknown(text))

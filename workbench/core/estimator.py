@@ -335,36 +335,30 @@ def plugin_color(name: str) -> Color:
 
 
 def one(exp: Any, item: Any, color: Color | None = None) -> Estimator:
-    """One item of a selection as an :class:`Estimator` of ``exp``."""
-    if isinstance(item, Estimator):
+    """One item of a selection as an :class:`Estimator` of ``exp`` (:func:`workbench.loading.resolve`)."""
+    plugins = installed(exp.name)
+
+    def unknown(text: str) -> str:
+        extra = ", ".join(plugins)
+        return (f"unknown estimator {text!r} for {exp.name}; built-in: {', '.join(exp.estimators)}"
+                + (f"; installed: {extra}" if extra else "") + "; or a module:function / file.py:function spec")
+
+    found = loading.resolve(item, "estimator", Estimator, exp.estimators, plugins, unknown, NAME.pattern)
+    name = found.name
+    if found.how == "row":
         return item if item.experiment else dataclasses.replace(item, experiment=exp.name)
-    if callable(item):
+    if found.how == "function":
         return from_function(exp, item, None, loading.python_ref(item), "python", color)
-    if not isinstance(item, str):
-        raise WorkbenchError(f"an estimator is a name, a module:function spec or a function, not {item!r}")
-    name = None
-    m = re.fullmatch(rf"({NAME.pattern})=(.+)", item.strip())
-    if m:
-        name, item = m.group(1), m.group(2)
-    item = item.strip()
-    if item in exp.estimators:
-        est = exp.estimators[item]
+    if found.how == "built-in":
+        est = found.value
         return dataclasses.replace(est, name=name) if name and name != est.name else est
-    if item in installed(exp.name):
-        ep = installed(exp.name)[item]
-        obj = loading.load_entry_point(ep, f"estimator {item!r} for {exp.name}")
+    if found.how == "installed":
+        ep, obj = found.entry_point, found.value
         if isinstance(obj, Estimator):
             return dataclasses.replace(obj, name=name or obj.name, experiment=exp.name, source=f"entry point {ep.name}",
-                                       ref=item)
-        return from_function(exp, obj, name or item, item, f"entry point {ep.name} ({ep.value})", color)
-    if ":" in item:
-        fn = loading.load(item)
-        return from_function(exp, fn, name, loading.spec_ref(item), item, color)
-    known = ", ".join(exp.estimators)
-    extra = ", ".join(installed(exp.name))
-    raise WorkbenchError(f"unknown estimator {item!r} for {exp.name}; built-in: {known}"
-                         + (f"; installed: {extra}" if extra else "")
-                         + "; or a module:function / file.py:function spec")
+                                       ref=found.key)
+        return from_function(exp, obj, name or found.key, found.key, f"entry point {ep.name} ({ep.value})", color)
+    return from_function(exp, found.value, name, loading.spec_ref(found.key), found.key, color)
 
 
 def from_function(exp: Any, fn: Any, name: str | None, ref: str | None, source: str,

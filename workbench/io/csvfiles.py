@@ -2,7 +2,7 @@
 
 What is repaired, counted in a ``repairs`` dict and said in one
 :class:`~workbench.errors.DataWarning` line each (the model is the MRCLAM loader,
-:mod:`workbench.experiments.omni.mrclam`):
+:mod:`workbench.experiments.omni.readers.mrclam`):
 
 * a **last line cut short** (fewer fields than the header, or a field that is not a number: a
   writer that stopped mid-line) is left out (``<what>_cut_last_line``);
@@ -126,11 +126,12 @@ def parse_rows(tab: textfile.Table, parse: Callable[[dict[str, str]], tuple], wh
     return rows, numbers
 
 
-def in_order(path: Path, t: np.ndarray, numbers: Sequence[int], max_backstep: float, what: str,
-             repairs: dict[str, int]) -> np.ndarray:
+def in_order(path: Path, t: np.ndarray, numbers: Sequence[int] | Callable[[], Sequence[int]], max_backstep: float,
+             what: str, repairs: dict[str, int]) -> np.ndarray:
     """The permutation that puts rows in time order: rows stamped up to ``max_backstep`` s
-    behind the latest before them are put back (counted, said); further back is an error
-    naming the two lines."""
+    behind the latest before them are put back (counted as ``<what>_reordered``, said); further
+    back is an error naming the two lines. ``numbers``: each row's line in the file, or a function
+    giving them (read only for the error)."""
     if not (np.diff(t) < 0).any():
         return np.arange(len(t))
     latest = np.maximum.accumulate(t)
@@ -138,14 +139,20 @@ def in_order(path: Path, t: np.ndarray, numbers: Sequence[int], max_backstep: fl
     if behind.max() > max_backstep:
         row = int(np.argmax(behind > max_backstep)) + 1
         prev = int(np.flatnonzero(t[:row] == latest[row - 1])[-1])
-        raise WorkbenchError(f"{what} file {path}, line {numbers[row]}: time goes backwards by "
-                             f"{latest[row - 1] - t[row]:.1f} s from line {numbers[prev]} "
+        lines = numbers() if callable(numbers) else numbers
+        raise WorkbenchError(f"{what} file {path}, line {lines[row]}: time goes backwards by "
+                             f"{_seconds(latest[row - 1] - t[row])} s from line {lines[prev]} "
                              f"(more than {max_backstep:g} s: not a row out of order)")
     order = np.argsort(t, kind="stable")
     moved = int(np.sum(order != np.arange(len(t))))
     count(repairs, f"{what}_reordered", moved)
-    say(path, f"{moved} row(s) out of time order (by up to {behind.max():.1f} s): put back in order")
+    say(path, f"{moved} row(s) out of time order (by up to {_seconds(behind.max())} s): put back in order")
     return order
+
+
+def _seconds(s: float) -> str:
+    """A time step as a repair names it: tenths from a second up, milliseconds below."""
+    return f"{s:.1f}" if s >= 1.0 else f"{s:.3f}"
 
 
 def last_of_repeats(keys: np.ndarray) -> np.ndarray:

@@ -209,34 +209,32 @@ def installed(experiment: str) -> dict:
 
 def one(item: Any, experiment: str = "") -> Metric:
     """One metric plugin: a :class:`Metric`, a function, an installed name, or a spec
-    (``module:function`` / ``file.py:function``, optionally ``name=spec``)."""
-    if isinstance(item, Metric):
+    (``module:function`` / ``file.py:function``, optionally ``name=spec``), found as an estimator
+    is (:func:`workbench.loading.resolve`); ``local:<name>`` a function this process was handed."""
+    if isinstance(item, str) and item.strip().startswith("local:") and item.strip()[6:] in _LOCAL:
+        return _LOCAL[item.strip()[6:]]
+    plugins = installed(experiment) if experiment else {}
+
+    def unknown(text: str) -> str:
+        return (f"unknown metric {text!r}: give module:function or file.py:function"
+                + (f" (installed: {', '.join(plugins)})" if plugins else ""))
+
+    found = loading.resolve(item, "metric", Metric, {}, plugins, unknown, NAME.pattern)
+    name = found.name
+    if found.how == "row":
         return item
-    if callable(item):
+    if found.how == "function":
         ref = loading.python_ref(item)
         m = from_function(item, None, ref, "python")
         if ref is None:
             _LOCAL[m.name] = m
             m = dataclasses.replace(m, ref=f"local:{m.name}")
         return m
-    text = str(item).strip()
-    name = None
-    found = re.fullmatch(rf"({NAME.pattern})=(.+)", text)
-    if found:
-        name, text = found.group(1), found.group(2).strip()
-    if text.startswith("local:") and text[6:] in _LOCAL:
-        return _LOCAL[text[6:]]
-    plugins = installed(experiment) if experiment else {}
-    if text in plugins:
-        ep = plugins[text]
-        obj = loading.load_entry_point(ep, f"metric {text!r}")
-        return dataclasses.replace(from_function(obj, name or text, None, f"entry point {ep.name}"), ref=text)
-    if ":" not in text:
-        raise WorkbenchError(f"unknown metric {text!r}: give module:function or file.py:function"
-                             + (f" (installed: {', '.join(plugins)})" if plugins else ""))
-    fn = loading.load(text, "metric")
-    ref = loading.spec_ref(text)
-    return from_function(fn, name, f"{name}={ref}" if name else ref, text)
+    if found.how == "installed":
+        return dataclasses.replace(from_function(found.value, name or found.key, None,
+                                                 f"entry point {found.entry_point.name}"), ref=found.key)
+    ref = loading.spec_ref(found.key)
+    return from_function(found.value, name, f"{name}={ref}" if name else ref, found.key)
 
 
 def spec(item: Any, experiment: str = "") -> str:

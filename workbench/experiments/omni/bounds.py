@@ -25,7 +25,7 @@ import gtsam
 import numpy as np
 from gtsam.symbol_shorthand import L, X
 
-from workbench.experiments.omni import graph
+from workbench.experiments.omni.algorithms import graph
 from workbench.experiments.omni.scenario import OmniData
 
 LANDMARK_PRIOR = 1.0e3

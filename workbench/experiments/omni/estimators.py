@@ -15,32 +15,32 @@ from workbench.experiments.omni.scenario import OmniData
 
 
 def odometry(data: OmniData, cfg: OmniConfig, ctx: RunContext) -> SlamEstimate:
-    from workbench.experiments.omni import ekf
+    from workbench.experiments.omni.algorithms import ekf
 
     return ekf.odometry(data)
 
 
 def ekf_paper(data: OmniData, cfg: OmniConfig, ctx: RunContext) -> SlamEstimate:
-    from workbench.experiments.omni import ekf
+    from workbench.experiments.omni.algorithms import ekf
 
     return ekf.run(data, cfg, "paper", "ekf-paper", ctx.record)
 
 
 def ekf_clone(data: OmniData, cfg: OmniConfig, ctx: RunContext) -> SlamEstimate:
-    from workbench.experiments.omni import ekf
+    from workbench.experiments.omni.algorithms import ekf
 
     return ctx.shared("ekf", lambda: ekf.run(data, cfg, "clone", "ekf", ctx.record))
 
 
 def keyframes(data: OmniData, cfg: OmniConfig, ctx: RunContext):
     """The graph's keyframes, odometry between them and bearings at them, made once a run."""
-    from workbench.experiments.omni import graph
+    from workbench.experiments.omni.algorithms import graph
 
     return ctx.shared("keyframes", lambda: graph.keyframes(data, cfg))
 
 
 def isam2(data: OmniData, cfg: OmniConfig, ctx: RunContext) -> SlamEstimate:
-    from workbench.experiments.omni import graph
+    from workbench.experiments.omni.algorithms import graph
 
     kf = keyframes(data, cfg, ctx)
     return ctx.shared("isam2", lambda: graph.isam2(data, cfg, kf, map_every=1.0 if ctx.record else math.inf))
@@ -49,7 +49,7 @@ def isam2(data: OmniData, cfg: OmniConfig, ctx: RunContext) -> SlamEstimate:
 def batch(data: OmniData, cfg: OmniConfig, ctx: RunContext) -> SlamEstimate:
     """The batch from each start ``--batch-starts`` names (an estimator's answer is made once a
     run, shared with that estimator's row), keeping the one of lowest cost on the data."""
-    from workbench.experiments.omni import graph
+    from workbench.experiments.omni.algorithms import graph
 
     kf = keyframes(data, cfg, ctx)
     made = {"isam2": lambda: isam2(data, cfg, ctx), "ekf": lambda: ekf_clone(data, cfg, ctx)}

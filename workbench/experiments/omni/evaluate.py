@@ -18,7 +18,8 @@ from workbench.core.experiment import RunSummary as Summary
 from workbench.estimation import consistency, metrics
 from workbench.estimation.angles import wrap
 from workbench.experiments.omni import bounds as omni_bounds
-from workbench.experiments.omni import graph, survey
+from workbench.experiments.omni import survey
+from workbench.experiments.omni.algorithms import graph
 from workbench.experiments.omni.config import OmniConfig
 from workbench.experiments.omni.estimate import SlamEstimate
 from workbench.experiments.omni.run import RunResult

@@ -73,7 +73,7 @@ class Omni(Experiment):
         lines = super().export(first, stats, extras, force)
         if folder is None:
             return lines
-        from workbench.experiments.omni import tum
+        from workbench.experiments.omni.readers import tum
 
         d = first.data
         trajectories = {"truth": (d.t, d.truth)}

@@ -139,17 +139,17 @@ def with_stage(cfg: OmniConfig, run: int, record: bool = False) -> tuple[OmniDat
     """The run's dataset and the image stage, if any (``record``: it keeps a frame a second)."""
     stage = None
     if cfg.scenario == "mrclam":
-        from workbench.experiments.omni import real
+        from workbench.experiments.omni.readers import real
 
         data = real.load(cfg)
     elif cfg.scenario == "log":
-        from workbench.experiments.omni import log
+        from workbench.experiments.omni.readers import log
 
         data = log.read(cfg.data, cfg)
     else:
         data = simulate(cfg, np.random.default_rng([cfg.seed, run]))
     if cfg.from_images:
-        from workbench.experiments.omni import images
+        from workbench.experiments.omni.imaging import stage as images
 
         cam = images.MirrorCamera(size=cfg.image_size, noise=cfg.image_noise)
         stage = images.run_stage(data, cam, cfg, np.random.default_rng([cfg.seed, run, 1]),
@@ -169,6 +169,6 @@ def run_once(exp: contract.Experiment, cfg: OmniConfig, run: int, estimators: li
 
 def write_log(data: OmniData, folder, force: bool = False) -> list:
     """A dataset in the open log format (``--export-data``; :mod:`.log`)."""
-    from workbench.experiments.omni import log
+    from workbench.experiments.omni.readers import log
 
     return log.write(data, folder, force)

@@ -2,7 +2,7 @@
 
 A dataset is odometry (a control per step), bearings (step, landmark, angle) and, where
 known, the truth. The same :class:`OmniData` comes from the simulation here and from the
-real robots (:mod:`workbench.experiments.omni.real`), so every estimator runs on both.
+real robots (:mod:`workbench.experiments.omni.readers.real`), so every estimator runs on both.
 """
 
 from __future__ import annotations

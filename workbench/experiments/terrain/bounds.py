@@ -30,7 +30,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from workbench.experiments.terrain import navigation, search
+from workbench.experiments.terrain import navigation
+from workbench.experiments.terrain.algorithms import search
 from workbench.experiments.terrain.config import TerrainConfig
 
 
@@ -80,7 +81,8 @@ def bundle_adjustment(cfg: TerrainConfig, scene, extras: dict) -> dict[str, floa
     import gtsam
     from gtsam.symbol_shorthand import L, X
 
-    from workbench.experiments.terrain import ba, camera
+    from workbench.experiments.terrain import camera
+    from workbench.experiments.terrain.algorithms import ba
     from workbench.experiments.terrain.dem import Dem
 
     if not extras or "tie_points" not in extras or extras.get("sigmas") is None:

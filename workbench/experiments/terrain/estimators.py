@@ -32,7 +32,7 @@ def navigation(data, cfg: TerrainConfig, ctx: RunContext) -> Estimate:
 
 def search(data, cfg: TerrainConfig, ctx: RunContext):
     """The recurrent search over the hypotheses, once a run: ``(problem, hypotheses, result)``."""
-    from workbench.experiments.terrain import search as rs
+    from workbench.experiments.terrain.algorithms import search as rs
 
     def make():
         sc, meas = data.scene, data.measured
@@ -46,7 +46,7 @@ def search(data, cfg: TerrainConfig, ctx: RunContext):
 def in_cell(data, cfg: TerrainConfig, ctx: RunContext):
     """The winning filter iterated inside its cell (:func:`search.iterate`, the cell's prior), once
     a run: ``(state, covariance, iterations)``."""
-    from workbench.experiments.terrain import search as rs
+    from workbench.experiments.terrain.algorithms import search as rs
 
     problem, hyp, result = search(data, cfg, ctx)  # each user is charged the search's time too
 
@@ -60,7 +60,7 @@ def posterior(data, cfg: TerrainConfig, ctx: RunContext):
     """The search's tempered posterior under the navigation prior, from the filter iterated in
     its cell (:func:`.posterior.posterior`), once a run."""
     from workbench.experiments.terrain import navigation as nav
-    from workbench.experiments.terrain import posterior as post
+    from workbench.experiments.terrain.algorithms import posterior as post
 
     problem, _, _ = search(data, cfg, ctx)
     start = in_cell(data, cfg, ctx)[0]
@@ -117,7 +117,7 @@ def tempered(data, cfg: TerrainConfig, ctx: RunContext) -> Estimate:
 
 
 def bundle_adjustment(data, cfg: TerrainConfig, ctx: RunContext) -> Estimate:
-    from workbench.experiments.terrain import ba
+    from workbench.experiments.terrain.algorithms import ba
 
     return ba.adjust(cfg, data.scene, data.measured.position, data.measured.angles)
 

@@ -19,7 +19,7 @@ from workbench.experiments.terrain.scenario import TerrainData
 
 def _measure(which: str):
     """``measure``'s command line or Python function, imported when first used."""
-    from workbench.experiments.terrain import commands
+    from workbench.experiments.terrain.products import command as commands
 
     return getattr(commands, which)
 
@@ -68,7 +68,7 @@ class Terrain(Experiment):
             record_run=record.record_run, record_runs=record.record_runs)
 
     def check_extras(self, cfg: TerrainConfig, extras: dict, force: bool) -> None:
-        from workbench.experiments.terrain import model
+        from workbench.experiments.terrain.products import model
         from workbench.recording import stream
 
         super().check_extras(cfg, extras, force)
@@ -89,7 +89,7 @@ class Terrain(Experiment):
         lines = super().export(first, stats, extras, force)
         if folder is None:
             return lines
-        from workbench.experiments.terrain import model
+        from workbench.experiments.terrain.products import model
 
         m = model.from_run(first, extras.get("model_from"))
         model.write(folder, m, first.scene, force)

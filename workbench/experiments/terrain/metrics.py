@@ -13,9 +13,9 @@ import numpy as np
 
 from workbench.estimation import metrics as em
 from workbench.estimation.angles import wrap
-from workbench.experiments.terrain import halftone
 from workbench.experiments.terrain.config import TerrainConfig
 from workbench.experiments.terrain.estimate import Estimate
+from workbench.experiments.terrain.products import halftone
 from workbench.experiments.terrain.scenario import TerrainData
 from workbench.metrics.base import Metric, MetricContext, Values
 
@@ -131,7 +131,7 @@ def cramer_rao(res: Any, cfg: TerrainConfig) -> dict[str, float]:
     """Image II's Cramér-Rao variances for this run (:mod:`.bounds`), from the search's problem
     (made here if no search estimator ran)."""
     from workbench.experiments.terrain import bounds
-    from workbench.experiments.terrain import search as rs
+    from workbench.experiments.terrain.algorithms import search as rs
 
     problem = res.problem
     if problem is None:

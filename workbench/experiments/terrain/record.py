@@ -41,15 +41,15 @@ from workbench.errors import WorkbenchError
 from workbench.experiments.terrain.estimators import ITERATED, POSTERIOR, REFINED, SEARCH, TABLE
 from workbench.experiments.terrain.evaluate import RunSummary
 from workbench.experiments.terrain.metrics import truth_known
-from workbench.experiments.terrain.model import PREFERRED
-from workbench.experiments.terrain.record_ground import (
+from workbench.experiments.terrain.products.model import PREFERRED
+from workbench.experiments.terrain.recording.ground import (
     _stride,
     halftone_texcoords,
     record_error_map,
     record_halftones,
     record_orthophoto,
 )
-from workbench.experiments.terrain.record_scene import (
+from workbench.experiments.terrain.recording.scene import (
     COLOUR_NAMES,
     TRUTH,
     color,
@@ -62,7 +62,7 @@ from workbench.experiments.terrain.record_scene import (
     record_cameras,
     record_dem,
 )
-from workbench.experiments.terrain.record_search import (
+from workbench.experiments.terrain.recording.search import (
     TIMELINES,
     Glyph,
     estimate_errors,
@@ -194,7 +194,7 @@ def _measurements(rec: rr.RecordingStream, first: RunResult, origin: np.ndarray)
     """A few measurements in the run's halftone model (:func:`.measure.examples`): on image II
     (pixels) and on the model's surface in 3D (the edges' ground points, along the terrain,
     lifted a little above it to stay in sight), labelled value +- sigma."""
-    from workbench.experiments.terrain import measure, model
+    from workbench.experiments.terrain.products import measure, model
 
     try:
         m = model.from_run(first)
@@ -226,7 +226,7 @@ def _measurements(rec: rr.RecordingStream, first: RunResult, origin: np.ndarray)
 def measurements_markdown(first: RunResult) -> str:
     """The recorded measurements as a table, beside what the same pixels measure under the
     true orientation (the scene's truth; for NGI its published orientation)."""
-    from workbench.experiments.terrain import measure, model
+    from workbench.experiments.terrain.products import measure, model
 
     try:
         m = model.from_run(first)

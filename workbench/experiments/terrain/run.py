@@ -57,12 +57,12 @@ def make_data(cfg: TerrainConfig, run: int) -> TerrainData:
     gives them). The sampled hypotheses draw from their own stream, seeded by ``(seed, run, 1)``,
     so a run written out and read back (:mod:`.log`) draws the same ones."""
     if cfg.scenario == "log":
-        from workbench.experiments.terrain import log
+        from workbench.experiments.terrain.readers import log
 
         return log.read(cfg.data, cfg, run)
     rng = np.random.default_rng([cfg.seed, run])
     if cfg.scenario == "ngi":
-        from workbench.experiments.terrain import ngi
+        from workbench.experiments.terrain.readers import ngi
 
         scene = ngi.load(cfg)
     else:
@@ -75,6 +75,6 @@ def make_data(cfg: TerrainConfig, run: int) -> TerrainData:
 
 def write_log(data: TerrainData, folder, force: bool = False) -> list:
     """A dataset in the open log format (``--export-data``; :mod:`.log`)."""
-    from workbench.experiments.terrain import log
+    from workbench.experiments.terrain.readers import log
 
     return log.write(data, folder, force)

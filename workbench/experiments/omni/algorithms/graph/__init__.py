@@ -26,8 +26,14 @@ Covariances are returned in the world frame (``x, y, phi``) like the filter's:
 
 from __future__ import annotations
 
-from workbench.experiments.omni.graph.batch import REGATE_ROUNDS, _batch_marginals, _drop_unseen, _regate, batch
-from workbench.experiments.omni.graph.gating import (
+from workbench.experiments.omni.algorithms.graph.batch import (
+    REGATE_ROUNDS,
+    _batch_marginals,
+    _drop_unseen,
+    _regate,
+    batch,
+)
+from workbench.experiments.omni.algorithms.graph.gating import (
     _bearing_test,
     gate_nis,
     gate_of,
@@ -35,7 +41,7 @@ from workbench.experiments.omni.graph.gating import (
     outlier_rate,
     robust_cost,
 )
-from workbench.experiments.omni.graph.incremental import (
+from workbench.experiments.omni.algorithms.graph.incremental import (
     JUMP_HEADING,
     JUMP_POSITION,
     MAP_FULL,
@@ -48,7 +54,7 @@ from workbench.experiments.omni.graph.incremental import (
     isam2,
     read_map,
 )
-from workbench.experiments.omni.graph.keyframes import (
+from workbench.experiments.omni.algorithms.graph.keyframes import (
     FLOOR,
     Keyframes,
     _lm_params,
@@ -61,7 +67,7 @@ from workbench.experiments.omni.graph.keyframes import (
     keyframes,
     to_world,
 )
-from workbench.experiments.omni.graph.landmarks import (
+from workbench.experiments.omni.algorithms.graph.landmarks import (
     _batch_graph,
     _Landmarks,
     _parallax_ok,
@@ -70,7 +76,7 @@ from workbench.experiments.omni.graph.landmarks import (
     consensus,
     refine,
 )
-from workbench.experiments.omni.graph.starts import (
+from workbench.experiments.omni.algorithms.graph.starts import (
     FIT_TEST,
     GROWN_EVERY,
     Start,

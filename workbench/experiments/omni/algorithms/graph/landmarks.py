@@ -13,9 +13,9 @@ import numpy as np
 from gtsam.symbol_shorthand import L, X
 
 from workbench.estimation.angles import wrap
-from workbench.experiments.omni.graph.keyframes import Keyframes, _odometry_graph
+from workbench.experiments.omni.algorithms.graph.keyframes import Keyframes, _odometry_graph
+from workbench.experiments.omni.algorithms.triangulation import rays
 from workbench.experiments.omni.scenario import OmniData
-from workbench.experiments.omni.triangulation import rays
 
 
 def _parallax_ok(pi: np.ndarray, bi: float, pj: np.ndarray, bj: float, min_parallax: float

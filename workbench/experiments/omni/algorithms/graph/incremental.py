@@ -15,11 +15,9 @@ import numpy as np
 from gtsam.symbol_shorthand import L, X
 
 from workbench.estimation.metrics import chi2_quantile
-from workbench.experiments.omni import residuals
-from workbench.experiments.omni.config import OmniConfig
-from workbench.experiments.omni.estimate import SlamEstimate
-from workbench.experiments.omni.graph.gating import _bearing_test, gate_of, gated_indices, outlier_rate
-from workbench.experiments.omni.graph.keyframes import (
+from workbench.experiments.omni.algorithms import residuals
+from workbench.experiments.omni.algorithms.graph.gating import _bearing_test, gate_of, gated_indices, outlier_rate
+from workbench.experiments.omni.algorithms.graph.keyframes import (
     Keyframes,
     _lm_params,
     _noise,
@@ -29,8 +27,16 @@ from workbench.experiments.omni.graph.keyframes import (
     keyframes,
     to_world,
 )
-from workbench.experiments.omni.graph.landmarks import _batch_graph, _Landmarks
-from workbench.experiments.omni.graph.marginals import MAP_FULL, _landmark_marginal, _marginal, _point_of, read_map
+from workbench.experiments.omni.algorithms.graph.landmarks import _batch_graph, _Landmarks
+from workbench.experiments.omni.algorithms.graph.marginals import (
+    MAP_FULL,
+    _landmark_marginal,
+    _marginal,
+    _point_of,
+    read_map,
+)
+from workbench.experiments.omni.config import OmniConfig
+from workbench.experiments.omni.estimate import SlamEstimate
 from workbench.experiments.omni.scenario import OmniData
 
 JUMP_POSITION = 2.0

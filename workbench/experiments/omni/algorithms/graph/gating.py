@@ -16,8 +16,8 @@ from gtsam.symbol_shorthand import L, X
 from workbench.estimation import outliers
 from workbench.estimation.angles import wrap
 from workbench.estimation.metrics import chi2_quantile
+from workbench.experiments.omni.algorithms.graph.keyframes import Keyframes, _odometry_graph, _pose
 from workbench.experiments.omni.config import OmniConfig
-from workbench.experiments.omni.graph.keyframes import Keyframes, _odometry_graph, _pose
 from workbench.experiments.omni.scenario import OmniData
 
 

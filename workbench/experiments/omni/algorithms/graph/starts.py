@@ -14,12 +14,12 @@ import numpy as np
 from gtsam.symbol_shorthand import L, X
 
 from workbench.estimation.metrics import chi2_quantile
+from workbench.experiments.omni.algorithms.graph.gating import gate_of, outlier_rate, robust_cost
+from workbench.experiments.omni.algorithms.graph.incremental import _Incremental, isam2
+from workbench.experiments.omni.algorithms.graph.keyframes import Keyframes, _lm_params
+from workbench.experiments.omni.algorithms.graph.landmarks import _batch_graph, _Landmarks
 from workbench.experiments.omni.config import OmniConfig
 from workbench.experiments.omni.estimate import SlamEstimate
-from workbench.experiments.omni.graph.gating import gate_of, outlier_rate, robust_cost
-from workbench.experiments.omni.graph.incremental import _Incremental, isam2
-from workbench.experiments.omni.graph.keyframes import Keyframes, _lm_params
-from workbench.experiments.omni.graph.landmarks import _batch_graph, _Landmarks
 from workbench.experiments.omni.scenario import OmniData
 
 
@@ -78,7 +78,7 @@ def named_starts(data: OmniData, cfg: OmniConfig, kf: Keyframes,
             return made[name]()
         if name == "isam2":
             return isam2(data, cfg, kf)
-        from workbench.experiments.omni import ekf
+        from workbench.experiments.omni.algorithms import ekf
 
         return ekf.run(data, cfg, "clone", "ekf", False)
 

@@ -10,13 +10,13 @@ import gtsam
 import numpy as np
 from gtsam.symbol_shorthand import L, X
 
-from workbench.experiments.omni import residuals
+from workbench.experiments.omni.algorithms import residuals
+from workbench.experiments.omni.algorithms.graph.gating import _bearing_test, gate_of, gated_indices, outlier_rate
+from workbench.experiments.omni.algorithms.graph.keyframes import Keyframes, _lm_params, _pose, keyframes, to_world
+from workbench.experiments.omni.algorithms.graph.landmarks import _batch_graph, _Landmarks
+from workbench.experiments.omni.algorithms.graph.starts import Start, _best_start, fit, named_starts
 from workbench.experiments.omni.config import OmniConfig
 from workbench.experiments.omni.estimate import SlamEstimate
-from workbench.experiments.omni.graph.gating import _bearing_test, gate_of, gated_indices, outlier_rate
-from workbench.experiments.omni.graph.keyframes import Keyframes, _lm_params, _pose, keyframes, to_world
-from workbench.experiments.omni.graph.landmarks import _batch_graph, _Landmarks
-from workbench.experiments.omni.graph.starts import Start, _best_start, fit, named_starts
 from workbench.experiments.omni.scenario import OmniData
 
 
