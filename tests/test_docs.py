@@ -54,3 +54,21 @@ def test_a_broken_link_fails_the_build(tmp_path):
     done = subprocess.run([sys.executable, "-m", "mkdocs", "build", "--strict", "-d", str(tmp_path / "site")],
                           cwd=tmp_path, capture_output=True, text=True, timeout=300)
     assert done.returncode != 0 and "nowhere.md" in done.stderr  # (mkdocs -q would hide it: not used)
+
+
+def test_the_public_api_documents_its_parameters():
+    """The functions a user calls first carry Args and Returns sections, which the API pages
+    render as tables (mkdocstrings, Google style)."""
+    import inspect
+
+    import workbench
+    from workbench.core import parts, registry
+
+    for fn in (workbench.run, workbench.configure, registry.get, parts.declare, workbench.Experiment.configure,
+               workbench.Experiment.select, workbench.Experiment.estimate):
+        doc = inspect.getdoc(fn)
+        assert "Args:" in doc and "Returns:" in doc, fn.__qualname__
+        named = set(re.findall(r"^    (\*{0,2}\w+):", doc.split("Args:")[1].split("Returns:")[0], re.M))
+        params = {("**" if p.kind is p.VAR_KEYWORD else "") + p.name
+                  for p in inspect.signature(fn).parameters.values() if p.name != "self"}
+        assert named == params, (fn.__qualname__, params ^ named)

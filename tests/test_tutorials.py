@@ -7,6 +7,7 @@
 * ``python run`` blocks run as a script (what the reader types into Python or a notebook).
 """
 
+import hashlib
 import os
 import re
 import subprocess
@@ -16,6 +17,17 @@ from pathlib import Path
 import pytest
 
 from workbench.paths import data_root
+
+PACKAGE = Path(__file__).resolve().parents[1] / "workbench"
+
+
+def _package_state() -> str:
+    """A hash of every source file of the workbench: what a tutorial must leave as it is."""
+    h = hashlib.sha1()
+    for f in sorted(PACKAGE.rglob("*.py")):
+        h.update(str(f.relative_to(PACKAGE)).encode() + f.read_bytes())
+    return h.hexdigest()
+
 
 TUTORIALS = sorted((Path(__file__).resolve().parents[1] / "docs" / "tutorials").glob("*.md"))
 BLOCK = re.compile(r"```(sh real-data|sh|(?:python|toml) file=\S+|python run)\n(.*?)```", flags=re.S)
@@ -30,6 +42,8 @@ def test_tutorial_runs(path, tmp_path):
     (tmp_path / "tut").mkdir()
     skipped = []
     outputs = []
+    before = _package_state()
+    written = []
     for kind, block in blocks:
         if kind == "sh real-data" and not data_root().is_dir():
             skipped.append(block.strip())
@@ -38,6 +52,7 @@ def test_tutorial_runs(path, tmp_path):
             target = tmp_path / kind.split("=", 1)[1]
             target.parent.mkdir(parents=True, exist_ok=True)  # a file of a package the reader writes
             target.write_text(block)
+            written.append(kind.split("=", 1)[1])
             continue
         if kind == "python run":
             r = subprocess.run([sys.executable, "-c", block], cwd=tmp_path, env=env, capture_output=True,
@@ -51,5 +66,8 @@ def test_tutorial_runs(path, tmp_path):
             outputs += re.findall(r"--out (\S+)", line)
     for out in outputs:
         assert (tmp_path / out).stat().st_size > 0, out
+    # an estimator, a metric or an experiment of your own is your files alone: none of the workbench's
+    assert _package_state() == before, "the tutorial touched a file of the workbench"
+    print(f"{path.stem}: files written by the reader: {', '.join(sorted(set(written))) or 'none'}")
     if skipped:
         pytest.skip(f"ran all but {len(skipped)} real-data block(s): no data at {data_root()}")

@@ -64,8 +64,17 @@ class Result:
 
 def configure(experiment: str | Experiment, scenario: str | None = None, config: Any = None,
               **overrides: Any) -> Any:
-    """The config ``run`` would use (validated), for a look before running; ``config`` as for
-    :func:`run`."""
+    """The config ``run`` would use (validated), for a look before running.
+
+    Args:
+        experiment: its name (``"omni"``, ``"sea"``, ``"terrain"`` or an installed one) or the object.
+        scenario: a scenario's name; ``None``: the config file's, else the first.
+        config: a ready config, or a config file's path, or a mapping of settings (as for :func:`run`).
+        **overrides: config fields, on top of the scenario's defaults and the config.
+
+    Returns:
+        The experiment's config dataclass, checked (a one-line ``WorkbenchError`` otherwise).
+    """
     exp = get(experiment) if isinstance(experiment, str) else experiment
     if config is not None and dataclasses.is_dataclass(config):
         return exp.validate(dataclasses.replace(config, **{k: v for k, v in overrides.items() if v is not None}))
@@ -96,6 +105,30 @@ def run(experiment: str | Experiment, scenario: str | None = None, *, config: An
     ``extras``: the experiment's extra options (e.g. omni's ``export_tum``, terrain's ``model``);
     ``export_data``: a folder for run 0's dataset in the experiment's open log format. ``progress(done,
     total)`` is called as runs finish.
+
+    Args:
+        experiment: its name or the object.
+        scenario: a scenario's name (``None``: the config's, else the first).
+        config: a ready config, a config file's path or a mapping of settings.
+        estimators: the selection (names, ``+name``, specs, functions); ``None``: the config's or the defaults.
+        out: the recording's path (``.rrd``), or ``None`` for none.
+        metrics: the metrics JSON's path, or ``None``.
+        force: overwrite ``out`` and ``metrics`` where they exist.
+        jobs: worker processes for the Monte Carlo runs (``None``: the cores).
+        spawn: stream live to a spawned viewer.
+        serve: serve the stream over gRPC from this process.
+        connect: stream to a running viewer at this ``rerun+http://...`` URL.
+        progress: called with ``(done, total)`` as runs finish.
+        extras: the experiment's extra options.
+        export_data: a folder for run 0's dataset in the open log format.
+        **overrides: config fields (``runs``, ``seed``, ``sigma_bearing_deg``, ...).
+
+    Returns:
+        A :class:`Result`: the config, run 0's data and estimates, every run's summary, the
+        metrics (as in the JSON), the results table, and the paths written.
+
+    Raises:
+        WorkbenchError: bad input (one line, before any work).
     """
     from workbench.recording import stream
 

@@ -123,10 +123,20 @@ class Experiment:
     # --- configure
     def configure(self, scenario: str | None = None, config: Any = None, **overrides: Any) -> Any:
         """The config of ``scenario`` with ``overrides`` on top; ``None`` means "not given" (the
-        scenario's default). ``config``: a config file's path (TOML or JSON,
-        :mod:`.configfile`) or a mapping of settings, between the scenario's defaults and the
-        overrides; its ``scenario`` is used where ``scenario`` is not given (else the first).
-        Unknown names, and an empty scenario (a typo, not a choice), are a one-line error."""
+        scenario's default).
+
+        Args:
+            scenario: a scenario's name; ``None``: the config file's, else the first.
+            config: a config file's path (TOML or JSON, :mod:`workbench.config.files`) or a mapping
+                of settings, between the scenario's defaults and the overrides.
+            **overrides: config fields.
+
+        Returns:
+            The config dataclass (not yet validated: :meth:`validate`).
+
+        Raises:
+            WorkbenchError: an unknown setting, or an empty scenario (a typo, not a choice).
+        """
         from workbench.config import files as configfile
 
         names = {f.name for f in dataclasses.fields(self.config_type)}
@@ -155,7 +165,18 @@ class Experiment:
         return cfg
 
     def select(self, selection: Iterable[Any] | str | None = None) -> list[Estimator]:
-        """The estimators to run: names, ``+name`` (the defaults and), specs or functions."""
+        """The estimators to run, the ones evaluation needs (``required``) put first.
+
+        Args:
+            selection: names, ``+name`` (the defaults and), ``module:function`` /
+                ``file.py:function`` specs, or functions; ``None``: the defaults.
+
+        Returns:
+            Their :class:`~workbench.core.estimator.Estimator` rows, in order.
+
+        Raises:
+            WorkbenchError: anything unknown, or a name selected twice.
+        """
         chosen = resolve(self, selection)
         names = [e.name for e in chosen]
         for need in reversed(self.required):
@@ -166,7 +187,17 @@ class Experiment:
     def estimate(self, data: Any, cfg: Any, estimators: Iterable[Any] | str | None = None,
                  record: bool = False) -> tuple[dict[str, Any], dict[str, str]]:
         """The selected estimators on a dataset you hand in (run k's, or one of your own), each
-        checked and timed: the estimates by name and the failures."""
+        checked and timed.
+
+        Args:
+            data: the experiment's public dataset.
+            cfg: its config.
+            estimators: the selection, as for :meth:`select`.
+            record: compute what only the recording draws.
+
+        Returns:
+            The estimates by estimator name, and the failures by name (one line each).
+        """
         return estimate_all(self.select(estimators), self.assumed(data, cfg), cfg, RunContext(record=record),
                             self.check)
 

@@ -128,8 +128,18 @@ REQUIRED = tuple(f.name for f in dataclasses.fields(Parts)
 
 
 def declare(experiment: str, **parts: Any) -> Parts:
-    """The :class:`Parts` of ``experiment``, or one clear error naming a part that is misnamed
-    (with the names there are) or missing."""
+    """The :class:`Parts` of an experiment, checked by name.
+
+    Args:
+        experiment: the experiment's name (for the errors).
+        **parts: its parts by name (:class:`Parts`' fields).
+
+    Returns:
+        The parts.
+
+    Raises:
+        WorkbenchError: a part misnamed (with the names there are) or a required one missing.
+    """
     wrong = sorted(set(parts) - set(NAMES))
     if wrong:
         raise WorkbenchError(f"experiment {experiment!r} declares no part called {', '.join(wrong)}; "

@@ -13,6 +13,7 @@ from __future__ import annotations
 import copyreg
 import dataclasses
 import functools
+from typing import Any
 
 from workbench import loading
 from workbench.core.estimator import Color, Estimator, one
@@ -58,8 +59,18 @@ def _builtin(name: str):
     return REGISTRY[name]().check_declaration()
 
 
-def get(name: str):
-    """The experiment called ``name`` (a one-line error naming the others if there is none)."""
+def get(name: str) -> Any:
+    """The experiment called ``name``, its declaration checked on first use.
+
+    Args:
+        name: a built-in's name or an installed experiment's (entry point group ``workbench.experiments``).
+
+    Returns:
+        The experiment's :class:`~workbench.core.experiment.Experiment`.
+
+    Raises:
+        WorkbenchError: no experiment by that name (the error names the others), or its declaration is wrong.
+    """
     if name in REGISTRY:
         return _builtin(name)
     plugins = installed()
