@@ -284,3 +284,11 @@ def test_a_declaration_is_checked_with_one_clear_error():
     with pytest.raises(WorkbenchError, match="its part check is str, not a function"):
         Mine().check_declaration()
     assert all(get(n).check_declaration() is get(n) for n in REGISTRY)
+
+
+def test_the_registry_names_of_the_last_release_warn():
+    code = ("import warnings\nwarnings.simplefilter('error')\nimport workbench.experiments as e\n"
+            "try:\n    e.get('sea')\nexcept Warning as w:\n    print(type(w).__name__, w)\n")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert done.stdout.strip() == ("MovedWarning workbench.experiments.get has moved to workbench.core.registry; "
+                                   "the old path goes in the next release"), done.stdout + done.stderr

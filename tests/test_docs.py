@@ -72,3 +72,15 @@ def test_the_public_api_documents_its_parameters():
         params = {("**" if p.kind is p.VAR_KEYWORD else "") + p.name
                   for p in inspect.signature(fn).parameters.values() if p.name != "self"}
         assert named == params, (fn.__qualname__, params ^ named)
+
+
+def test_the_paths_the_docs_name_are_there():
+    """A file of the repository named in the README or a docs page (``workbench/...py``,
+    ``tests/...``, ``benchmarks/...``, ``docs/...``) exists: a move that forgets a page fails here."""
+    missing: dict[str, set] = {}
+    path = re.compile(r"((?:workbench|tests|benchmarks|docs)/[\w/.-]+\.(?:py|md|json|toml))")
+    for page in [README, *(ROOT / "docs").rglob("*.md")]:
+        for named in path.findall(page.read_text()):
+            if not (ROOT / named).exists():
+                missing.setdefault(page.name, set()).add(named)
+    assert not missing, missing
