@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: demo test lint bench clean screenshots
+.PHONY: demo test lint bench clean screenshots docs
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -28,6 +28,11 @@ screenshots: $(STAMP)
 	$(BIN)/workbench screenshot recordings/*.rrd --out recordings/screenshots --force
 	mkdir -p docs/images
 	$(BIN)/python -c "import cv2, sys; [cv2.imwrite(f'docs/images/{o}.png', cv2.resize(cv2.imread(f'recordings/screenshots/{i}.default.png'), (1200, 750), interpolation=cv2.INTER_AREA), [cv2.IMWRITE_PNG_COMPRESSION, 9]) for o, i in (('omni', 'omni-paper'), ('sea', 'sea-paper'), ('terrain', 'terrain-common'))]"
+
+# The docs as a site (README, docs/, the tutorials, the API pages from the docstrings) in site/;
+# the tests build it with --strict.
+docs: $(STAMP)
+	$(BIN)/python -m mkdocs build --strict -d site
 
 lint: $(STAMP)
 	$(BIN)/python -m ruff check workbench tests benchmarks
