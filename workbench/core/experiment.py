@@ -269,7 +269,6 @@ class Experiment:
         every metric's samples for every estimate (:func:`.metric.evaluate`)."""
         summary = self.parts.summarise(result, cfg, run)
         ctx = metric.MetricContext(cfg, run, estimates=result.estimates, estimators=result.estimators,
-                                   experiment=self,
                                    products=result.products, cache=result.cache, result=result)
         metrics = self.metrics(cfg)
         summary.metrics, summary.metric_failures = metric.evaluate(metrics, result.data, result.estimates, ctx)

@@ -78,7 +78,6 @@ class MetricContext:
     products: Mapping[str, Any] = field(default_factory=dict)  # the estimators' shared products of the run
     cache: dict = field(default_factory=dict)
     result: Any = None             # the run's whole result (its experiment's RunResult)
-    experiment: Any = None         # the experiment evaluating the run (what a metric that reruns it needs)
 
     def shared(self, key: str, make: Callable[[], Any]) -> Any:
         if key not in self.cache:

@@ -114,7 +114,7 @@ def into_diagnosis(found: dict, entry: Mapping[str, Any]) -> None:
 
 
 def _nees(data: Any, est: Any, ctx: MetricContext) -> Values | None:
-    found = ctx.shared("bootstrap", lambda: resampled(ctx.experiment, ctx))
+    found = ctx.shared("bootstrap", lambda: resampled(ctx.result.experiment, ctx))
     return found.get(ctx.name)
 
 
