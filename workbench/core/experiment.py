@@ -29,7 +29,7 @@ from typing import Any
 
 from workbench.config.settings import COMMON, Option, Scenario, config_json
 from workbench.core.estimator import Estimator, RunContext, estimate_all, resolve
-from workbench.core.parts import Command, Demo, Parts, Preset, check
+from workbench.core.parts import Command, Demo, Later, Parts, Preset, check
 from workbench.core.results import RunResult, RunSummary, without
 from workbench.errors import WorkbenchError
 from workbench.metrics import base as metric
@@ -37,7 +37,8 @@ from workbench.metrics import bootstrap, diagnosis, truthfree
 from workbench.metrics import statistics as figures
 from workbench.metrics import tables as markdown
 
-__all__ = ["Command", "Demo", "Experiment", "Parts", "Preset", "RunResult", "RunSummary", "run_estimators", "without"]
+__all__ = ["Command", "Demo", "Experiment", "Later", "Parts", "Preset", "RunResult", "RunSummary", "run_estimators",
+           "without"]
 
 def run_estimators(exp: Experiment, cfg: Any, run: int, estimators: list[Estimator], data: Any,
                    record: bool = False, threads: int = 1, **fields: Any) -> RunResult:
@@ -85,10 +86,26 @@ class Experiment:
         """The declared parts, made once."""
         return check(self.name, self.declare())
 
-    def check_declaration(self) -> Experiment:
-        """The declaration checked (the registry calls it when the experiment is first asked
-        for): a name, a config type with a scenario, scenarios, and parts (:func:`.parts.check`);
-        one clear error naming what is wrong."""
+    def part(self, name: str) -> Any:
+        """A part of the evaluation or the recording: the declared one, else the framework's
+        (:mod:`workbench.core.defaults`, imported here: it draws with Rerun, which listing the
+        experiments need not load)."""
+        own = getattr(self.parts, name)
+        if isinstance(own, Later):
+            return own.load()
+        if own is not None:
+            return own
+        from workbench.core import defaults
+
+        return getattr(defaults, name)
+
+    def check_declaration(self, parts: bool = True) -> Experiment:
+        """The declaration checked: a name, a config type with a scenario, scenarios, commands,
+        and with ``parts`` its parts (:func:`.parts.check`); one clear error naming what is wrong.
+        The registry checks the class's declarations when the experiment is first asked for and
+        leaves the parts to their first use (the same check, on :attr:`parts`): declaring them
+        imports the experiment's modules, which listing the experiments (the command line's
+        start) need not pay for."""
         if not self.name:
             raise WorkbenchError(f"{type(self).__name__} has no name")
         if not dataclasses.is_dataclass(self.config_type):
@@ -102,7 +119,8 @@ class Experiment:
         for c in self.commands:
             if not callable(c.cli) or (c.api is not None and not callable(c.api)):
                 raise WorkbenchError(f"experiment {self.name!r}: command {c.name!r} is not given as functions")
-        _ = self.parts
+        if parts:
+            _ = self.parts
         return self
 
     @property
@@ -267,7 +285,7 @@ class Experiment:
     def evaluate(self, result: RunResult, cfg: Any, run: int) -> RunSummary:
         """A run's summary, small enough to send back: the package's ``evaluate.summarise`` and
         every metric's samples for every estimate (:func:`.metric.evaluate`)."""
-        summary = self.parts.summarise(result, cfg, run)
+        summary = self.part("summarise")(result, cfg, run)
         ctx = metric.MetricContext(cfg, run, estimates=result.estimates, estimators=result.estimators,
                                    products=result.products, cache=result.cache, result=result)
         metrics = self.metrics(cfg)
@@ -302,7 +320,7 @@ class Experiment:
         if failed:
             stats["metric_failures"] = failed
         diagnosis.attach(stats, [s.evidence for s in summaries], self.parts.noise_groups)
-        self.parts.statistics(self, cfg, summaries, stats)
+        self.part("statistics")(self, cfg, summaries, stats)
         return figures.add_renamed(stats, self.renamed)
 
     def table(self, stats: dict) -> str:
@@ -327,7 +345,7 @@ class Experiment:
         name the estimators that fail their consistency tests)."""
         import inspect
 
-        layout = self.parts.layout
+        layout = self.part("layout")
         if stats is not None and "stats" in inspect.signature(layout).parameters:
             return layout(first, summaries, stats=stats)
         return layout(first, summaries)
@@ -339,11 +357,11 @@ class Experiment:
 
     def record_run(self, rec: Any, first: Any, summary: Any) -> None:
         """Draw run 0 from its result and evaluation, all that needs no other run (``record.record_run``)."""
-        self.parts.record_run(rec, first, summary)
+        self.part("record_run")(rec, first, summary)
 
     def record_runs(self, rec: Any, first: Any, summaries: list[Any], table: str) -> None:
         """Draw what the Monte Carlo runs add and the results table (``record.record_runs``)."""
-        self.parts.record_runs(rec, first, summaries, table)
+        self.part("record_runs")(rec, first, summaries, table)
 
     def label(self, first: Any) -> str:
         return first.data.label

@@ -3,9 +3,8 @@ steps, named sweeps and commands.
 
 An experiment's ``experiment.py`` gives its :class:`~workbench.core.experiment.Experiment` a
 ``declare()`` that imports its own modules (statically: the import test sees every edge) and
-returns its :class:`Parts`. The registry checks the declaration when the experiment is first
-asked for (:func:`check`): a part missing, misnamed or of the wrong kind is one clear error
-naming it. Nothing is looked up by a module's name.
+returns its :class:`Parts`, checked on their first use (:func:`check`): a part missing, misnamed
+or of the wrong kind is one clear error naming it. Nothing is looked up by a module's name.
 """
 
 from __future__ import annotations
@@ -15,7 +14,6 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
-from workbench.core import defaults
 from workbench.core.estimator import Estimator
 from workbench.core.results import RunResult
 from workbench.errors import WorkbenchError
@@ -61,10 +59,24 @@ class Command:
     api: Callable[[], Callable] | None = None
 
 
+@dataclass(frozen=True)
+class Later:
+    """A part imported on its first use: ``load`` gives the function (a module that loads Rerun or
+    GTSAM need not be imported to list the experiments or build the command line). Calling it
+    calls that function."""
+
+    load: Callable[[], Callable]
+
+    def __call__(self, *args: Any, **kwargs: Any) -> Any:
+        return self.load()(*args, **kwargs)
+
+
 @dataclass(frozen=True, kw_only=True)
 class Parts:
-    """An experiment's parts, one attribute each. The first four are required; the rest have
-    the framework's defaults (:mod:`workbench.core.defaults`) or are absent (``None``).
+    """An experiment's parts, one attribute each. The first four are required; the rest are
+    absent (``None``): the evaluation's and the recording's then are the framework's
+    (:mod:`workbench.core.defaults`, :meth:`Experiment.part`), imported only when used. Any function
+    may be given as :class:`Later`, imported on its first use.
 
     Data and estimates:
         make_data: ``(cfg, run) -> data``, run k's dataset, made or loaded.
@@ -110,16 +122,16 @@ class Parts:
     components: Callable | None = None
     resample: Callable | None = None
     bootstrap_nees: str | None = None
-    summarise: Callable = defaults.summarise
-    statistics: Callable = defaults.statistics
+    summarise: Callable | None = None
+    statistics: Callable | None = None
     report: Callable | None = None
     table_columns: tuple[str, ...] = ()
     bounds: tuple = ()
     renamed: Mapping[str, str] = field(default_factory=dict)
     noise_groups: Mapping[str, str] = field(default_factory=dict)
-    layout: Callable = defaults.layout
-    record_run: Callable = defaults.record_run
-    record_runs: Callable = defaults.record_runs
+    layout: Callable | None = None
+    record_run: Callable | None = None
+    record_runs: Callable | None = None
 
 
 NAMES = tuple(f.name for f in dataclasses.fields(Parts))

@@ -4,8 +4,8 @@ Adding an experiment is its own package (with an ``experiment.py`` defining ``EX
 one function here that imports it; or, from an installed package, an entry point of the group
 ``workbench.experiments`` named after the experiment, pointing at its ``EXPERIMENT`` (the object)
 or its ``experiment`` module. Each is imported when first asked for (``experiment.py`` modules
-import nothing heavy at the top, so listing them is quick), and its declaration is checked then
-(:meth:`~workbench.core.experiment.Experiment.check_declaration`).
+import nothing heavy at the top, so listing them is quick), and its declaration is checked then,
+its parts on their first use (:meth:`~workbench.core.experiment.Experiment.check_declaration`).
 """
 
 from __future__ import annotations
@@ -56,7 +56,7 @@ def names() -> list[str]:
 
 @functools.cache
 def _builtin(name: str):
-    return REGISTRY[name]().check_declaration()
+    return REGISTRY[name]().check_declaration(parts=False)
 
 
 def get(name: str) -> Any:
@@ -80,7 +80,7 @@ def get(name: str) -> Any:
     exp = getattr(obj, "EXPERIMENT", obj)
     if getattr(exp, "name", None) != name:
         raise WorkbenchError(f"installed experiment {name!r} is not an Experiment named {name!r}")
-    return exp.check_declaration()
+    return exp.check_declaration(parts=False)
 
 
 def all_experiments() -> list:

@@ -10,21 +10,22 @@ Errors are ``truth - estimate`` with the heading wrapped; "after settling" means
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from workbench.core.experiment import RunSummary as Summary
 from workbench.estimation import consistency, metrics
 from workbench.estimation.angles import wrap
-from workbench.experiments.omni import bounds as omni_bounds
 from workbench.experiments.omni import survey
-from workbench.experiments.omni.algorithms import graph
 from workbench.experiments.omni.config import OmniConfig
 from workbench.experiments.omni.estimate import SlamEstimate
 from workbench.experiments.omni.run import RunResult
 from workbench.experiments.omni.scenario import OmniData
 from workbench.metrics import truthfree
+
+if TYPE_CHECKING:
+    from workbench.experiments.omni.algorithms import graph
 
 
 def on_grid(est: SlamEstimate, grid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -81,6 +82,8 @@ def bounds(data: OmniData, cfg: OmniConfig, keyframes: graph.Keyframes | None = 
         return {}
     if not np.isfinite(data.landmarks[np.unique(data.meas_lm)]).all():
         return {}
+    from workbench.experiments.omni import bounds as omni_bounds  # GTSAM, loaded where a bound is computed
+    from workbench.experiments.omni.algorithms import graph
     from workbench.experiments.omni.run import assumes
 
     # (the estimators' keyframes carry the noise they were told; the bound is the data's own)

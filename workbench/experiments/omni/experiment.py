@@ -8,11 +8,18 @@ from pathlib import Path
 
 from workbench.core import parts
 from workbench.core.experiment import Demo, Experiment, Preset
-from workbench.core.parts import Parts
+from workbench.core.parts import Later, Parts
 from workbench.errors import require
 from workbench.experiments.omni.config import EXTRAS, OPTIONS, SCENARIOS, OmniConfig
 from workbench.experiments.omni.estimate import SlamEstimate
 from workbench.experiments.omni.scenario import OmniData
+
+
+def _record():
+    """The recording's module (it loads Rerun), imported on first use."""
+    from workbench.experiments.omni import record
+
+    return record
 
 
 class Omni(Experiment):
@@ -44,16 +51,17 @@ class Omni(Experiment):
 
     def declare(self) -> Parts:
         """The omni package's parts."""
-        from workbench.experiments.omni import estimate, estimators, evaluate, metrics, record, report, resample, run
+        from workbench.experiments.omni import estimate, estimators, evaluate, metrics, report, resample, run
 
         return parts.declare(
             self.name, make_data=run.make_data, check=estimate.check, estimators=estimators.TABLE,
             metrics=metrics.METRICS, assumed=run.assumed, result_type=run.RunResult, run_once=run.run_once,
             write_log=run.write_log, tunable=run.tunable, components=run.components, resample=resample.resample,
-            bootstrap_nees=metrics.BOOTSTRAP_NEES, summarise=evaluate.summarise, statistics=evaluate.statistics,
-            report=report.table, table_columns=metrics.TABLE, bounds=metrics.BOUNDS, renamed=metrics.RENAMED,
-            noise_groups=metrics.NOISE_GROUPS, layout=record.layout, record_run=record.record_run,
-            record_runs=record.record_runs)
+            bootstrap_nees=metrics.BOOTSTRAP_NEES, summarise=evaluate.summarise,
+            statistics=evaluate.statistics, report=report.table, table_columns=metrics.TABLE,
+            bounds=metrics.BOUNDS, renamed=metrics.RENAMED, noise_groups=metrics.NOISE_GROUPS,
+            layout=Later(lambda: _record().layout), record_run=Later(lambda: _record().record_run),
+            record_runs=Later(lambda: _record().record_runs))
 
     def check_extras(self, cfg: OmniConfig, extras: dict, force: bool) -> None:
         from workbench.recording import stream

@@ -6,10 +6,17 @@ from __future__ import annotations
 
 from workbench.core import parts
 from workbench.core.experiment import Demo, Experiment, Preset
-from workbench.core.parts import Parts
+from workbench.core.parts import Later, Parts
 from workbench.experiments.sea.config import OPTIONS, SCENARIOS, SeaConfig
 from workbench.experiments.sea.estimate import Estimate
 from workbench.experiments.sea.scenario import SeaData
+
+
+def _record():
+    """The recording's module (it loads Rerun), imported on first use."""
+    from workbench.experiments.sea import record
+
+    return record
 
 
 class Sea(Experiment):
@@ -44,16 +51,16 @@ class Sea(Experiment):
 
     def declare(self) -> Parts:
         """The sea package's parts."""
-        from workbench.experiments.sea import estimate, estimators, evaluate, metrics, record, report, resample, run
+        from workbench.experiments.sea import estimate, estimators, evaluate, metrics, report, resample, run
 
         return parts.declare(
             self.name, make_data=run.make_data, check=estimate.check, estimators=estimators.TABLE,
             metrics=metrics.METRICS, assumed=run.assumed, result_type=run.RunResult, run_once=run.run_once,
             run_count=run.run_count, grid_values=run.grid_values, write_log=run.write_log, tunable=run.tunable,
             resample=resample.resample, bootstrap_nees=metrics.BOOTSTRAP_NEES, summarise=evaluate.summarise,
-            statistics=evaluate.statistics, report=report.table, table_columns=metrics.TABLE,
-            bounds=metrics.BOUNDS, renamed=metrics.RENAMED, noise_groups=metrics.NOISE_GROUPS,
-            layout=record.layout, record_run=record.record_run, record_runs=record.record_runs)
+            statistics=evaluate.statistics, report=report.table, table_columns=metrics.TABLE, bounds=metrics.BOUNDS,
+            renamed=metrics.RENAMED, noise_groups=metrics.NOISE_GROUPS, layout=Later(lambda: _record().layout),
+            record_run=Later(lambda: _record().record_run), record_runs=Later(lambda: _record().record_runs))
 
 
 EXPERIMENT = Sea()

@@ -9,7 +9,7 @@ from pathlib import Path
 
 from workbench.core import parts
 from workbench.core.experiment import Command, Demo, Experiment, Preset
-from workbench.core.parts import Parts
+from workbench.core.parts import Later, Parts
 from workbench.errors import require
 from workbench.experiments.terrain import grid
 from workbench.experiments.terrain.config import EXTRAS, OPTIONS, SCENARIOS, TerrainConfig
@@ -22,6 +22,13 @@ def _measure(which: str):
     from workbench.experiments.terrain.products import command as commands
 
     return getattr(commands, which)
+
+
+def _record():
+    """The recording's module (it loads Rerun), imported on first use."""
+    from workbench.experiments.terrain import record
+
+    return record
 
 
 class Terrain(Experiment):
@@ -58,14 +65,14 @@ class Terrain(Experiment):
 
     def declare(self) -> Parts:
         """The terrain package's parts."""
-        from workbench.experiments.terrain import estimate, estimators, evaluate, metrics, record, report, run
+        from workbench.experiments.terrain import estimate, estimators, evaluate, metrics, report, run
 
         return parts.declare(
             self.name, make_data=run.make_data, check=estimate.check, estimators=estimators.TABLE,
-            metrics=metrics.METRICS, result_type=run.RunResult, write_log=run.write_log,
-            summarise=evaluate.summarise, statistics=evaluate.statistics, report=report.table,
-            table_columns=metrics.TABLE, bounds=metrics.BOUNDS, renamed=metrics.RENAMED, layout=record.layout,
-            record_run=record.record_run, record_runs=record.record_runs)
+            metrics=metrics.METRICS, result_type=run.RunResult, write_log=run.write_log, summarise=evaluate.summarise,
+            statistics=evaluate.statistics, report=report.table, table_columns=metrics.TABLE, bounds=metrics.BOUNDS,
+            renamed=metrics.RENAMED, layout=Later(lambda: _record().layout),
+            record_run=Later(lambda: _record().record_run), record_runs=Later(lambda: _record().record_runs))
 
     def check_extras(self, cfg: TerrainConfig, extras: dict, force: bool) -> None:
         from workbench.experiments.terrain.products import model
