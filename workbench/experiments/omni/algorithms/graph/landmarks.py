@@ -7,6 +7,7 @@ that is set."""
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import gtsam
 import numpy as np
@@ -40,7 +41,9 @@ def bearing_noise(sigma: float, huber: float = 0.0) -> gtsam.noiseModel.Base:
 class _Landmarks:
     """Held-back bearings per landmark until two rays give a good intersection."""
 
-    def __init__(self, n: int, sigma: float, min_parallax: float, huber: float = 0.0):
+    def __init__(self, n: int, sigma: float, min_parallax: float, huber: float = 0.0,
+                 baseline: Callable[[int, int], float] | None = None):
+        self.baseline = baseline  # (keyframe, keyframe) -> the least distance between them that is not noise
         self.obs: list[list[tuple[int, float]]] = [[] for _ in range(n)]
         self.inserted = np.zeros(n, bool)
         self.outliers: list[tuple[int, int]] = []
@@ -95,7 +98,10 @@ class _Landmarks:
         one's rays do not meet in front of both with ``min_parallax``. The two rays' meeting
         point is refined by least squares over every held ray (:func:`refine`)."""
         first, newest = self.obs[lm][0], self.obs[lm][-1]
-        point = _parallax_ok(pose_of(first[0]), first[1], pose_of(newest[0]), newest[1], self.min_parallax)
+        a, b = pose_of(first[0]), pose_of(newest[0])
+        if self.baseline is not None and math.hypot(b[0] - a[0], b[1] - a[1]) < self.baseline(first[0], newest[0]):
+            return None   # the rays' parallax would be the odometry's noise (a robot turning on the spot)
+        point = _parallax_ok(a, first[1], b, newest[1], self.min_parallax)
         if point is None or len(self.obs[lm]) < 3:
             return point
         poses = np.array([pose_of(k) for k, _ in self.obs[lm]])
