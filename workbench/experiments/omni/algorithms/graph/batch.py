@@ -4,6 +4,7 @@ pose."""
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 
 import gtsam
@@ -13,7 +14,7 @@ from gtsam.symbol_shorthand import L, X
 from workbench.experiments.omni.algorithms import residuals
 from workbench.experiments.omni.algorithms.graph.gating import _bearing_test, gate_of, gated_indices, outlier_rate
 from workbench.experiments.omni.algorithms.graph.keyframes import Keyframes, _lm_params, _pose, keyframes, to_world
-from workbench.experiments.omni.algorithms.graph.landmarks import _batch_graph, _Landmarks
+from workbench.experiments.omni.algorithms.graph.landmarks import AGREEING, _batch_graph, _Landmarks, consensus
 from workbench.experiments.omni.algorithms.graph.starts import Start, _best_start, fit, named_starts
 from workbench.experiments.omni.config import OmniConfig
 from workbench.experiments.omni.estimate import SlamEstimate
@@ -55,7 +56,8 @@ def batch(data: OmniData, cfg: OmniConfig, kf: Keyframes | None = None,
     covs, lm_cov = _batch_marginals(graph, result, E, marks.inserted)
     for _ in range(REGATE_ROUNDS if cfg.nis_gate > 0.0 or outlier_rate(cfg) > 0.0 else 0):
         again = _regate(data, cfg, kf, result, covs, lm_cov, marks.inserted)
-        if again == rejected:
+        again, moved = _relocate(data, cfg, kf, marks, again, result)
+        if again == rejected and not moved:
             break
         rejected = again
         result = _drop_unseen(kf, marks, rejected, result)
@@ -91,6 +93,43 @@ def _drop_unseen(kf: Keyframes, marks: _Landmarks, rejected: set[tuple[int, int]
 
 REGATE_ROUNDS = 3
 """How many times the batch re-gates every bearing against its own smoothed answer."""
+
+
+def _relocate(data: OmniData, cfg: OmniConfig, kf: Keyframes, marks: _Landmarks, rejected: set[tuple[int, int]],
+              result: gtsam.Values) -> tuple[set[tuple[int, int]], list[int]]:
+    """Landmarks placed where most of their own bearings disagree, moved to where most agree.
+
+    A landmark enters from the first rays that agree (:func:`.landmarks.consensus`); where those
+    were misread ids (another landmark's bearings under its id) it sits where they meet, and the
+    gate then leaves out its own bearings, each one on its own too far from that place (a
+    synthetic log with 10 % of the ids misread: landmark 32, 49 true bearings of 55, 62 m off).
+    Here every landmark the gate left more than half its bearings of is placed again by consensus
+    over all of them, from the smoothed poses: where more of its bearings agree on another place
+    (within the gate's tolerance), it moves there (``result`` updated in place), those bearings are
+    taken in and the rest left out; the next solve starts from it. RANSAC's reading (Fischler and
+    Bolles 1981): the place most rays support, not the first few."""
+    rays: dict[int, list[tuple[int, float]]] = {}
+    for e, (lms, bearings) in enumerate(kf.bearings):
+        for lm, b in zip(lms.tolist(), bearings.tolist(), strict=True):
+            if marks.inserted[lm]:
+                rays.setdefault(lm, []).append((e, b))
+    threshold = gate_of(cfg)
+    tolerance = math.sqrt(max(float(threshold(data.sigma_bearing ** 2)), 0.0)) * data.sigma_bearing
+    out, moved = set(rejected), []
+    for lm, held in rays.items():
+        left = sum((e, lm) in rejected for e, _ in held)
+        if len(held) < AGREEING or 2 * left <= len(held):
+            continue
+        poses = np.array([_pose(result.atPose2(X(e))) for e, _ in held])
+        found = consensus(poses, np.array([b for _, b in held]), tolerance, marks.min_parallax)
+        if found is None or int(found[1].sum()) <= len(held) - left:
+            continue
+        point, agree = found
+        result.update(L(lm), gtsam.Point2(*point))
+        for (e, _), ok in zip(held, agree, strict=True):
+            (out.discard if ok else out.add)((e, lm))
+        moved.append(lm)
+    return out, moved
 
 
 def _batch_marginals(graph: gtsam.NonlinearFactorGraph, result: gtsam.Values, E: int, inserted: np.ndarray

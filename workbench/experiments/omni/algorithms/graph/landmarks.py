@@ -18,6 +18,9 @@ from workbench.experiments.omni.algorithms.graph.keyframes import Keyframes, _od
 from workbench.experiments.omni.algorithms.triangulation import rays
 from workbench.experiments.omni.scenario import OmniData
 
+AGREEING = 3
+"""The rays that must agree on a landmark's place (:func:`consensus`)."""
+
 
 def _parallax_ok(pi: np.ndarray, bi: float, pj: np.ndarray, bj: float, min_parallax: float
                  ) -> np.ndarray | None:
@@ -139,13 +142,13 @@ def consensus(poses: np.ndarray, bearings: np.ndarray, tolerance: float, min_par
             score = (int(agree.sum()), -float(np.sum(r[agree] ** 2)))
             if best is None or score > best[:2]:
                 best = (*score, point)
-    if best is None or best[0] < 3:
+    if best is None or best[0] < AGREEING:
         return None
     point = best[2]
     agree = np.abs(_residuals(point, poses, bearings)) < tolerance
     point = refine(point, poses[agree], bearings[agree])
     agree = np.abs(_residuals(point, poses, bearings)) < tolerance
-    return (point, agree) if agree.sum() >= 3 else None
+    return (point, agree) if agree.sum() >= AGREEING else None
 
 
 def _residuals(point: np.ndarray, poses: np.ndarray, bearings: np.ndarray) -> np.ndarray:
