@@ -186,6 +186,7 @@ def main(argv: list[str] | None = None) -> int:
                     help="resamples per run from each omni run's own answer: the truth-free NEES decides consistency")
     ap.add_argument("--out", type=Path, default=None, help="also write the table here (markdown)")
     ap.add_argument("--only", choices=("omni", "sea"), default=None, help="the one experiment's cells alone")
+    ap.add_argument("--cell", default=None, help="the cells whose name holds this text alone")
     args = ap.parse_args(argv)
     rows, agree, total, fooled, faults_named, faults_total = [], 0, 0, [], 0, 0
     t0 = time.perf_counter()
@@ -193,7 +194,7 @@ def main(argv: list[str] | None = None) -> int:
     extra: dict[tuple[str, str], dict[str, list[tuple[float | None, int]]]] = {}
     with tempfile.TemporaryDirectory() as tmp:
         for experiment, cell, kw in _cells(args.runs_omni, args.runs_sea, Path(tmp), args.bootstrap, args.logs):
-            if args.only not in (None, experiment):
+            if args.only not in (None, experiment) or (args.cell is not None and args.cell not in cell):
                 continue
             scenario, truth_only = kw.pop("scenario"), kw.pop("truth_only", False)
             result = api.run(experiment, scenario, **kw)
