@@ -35,7 +35,7 @@ FACTOR_RANGE = (0.1, 10.0)
 
 def factors(result: Any) -> dict[str, float]:
     """The noise factors (sigma) on what the estimators were told that the data identify: the
-    maximum of the EKF's likelihood of the run's data (:func:`workbench.core.selftune.
+    maximum of the EKF's likelihood of the run's data (:func:`workbench.core.likelihood.
     maximum_likelihood`), each value over the told one where identified, 1 where not; the angles'
     the geometric mean of the two angles'.
 
@@ -43,7 +43,7 @@ def factors(result: Any) -> dict[str, float]:
     angles' noise, and the split read the acceleration x0.7 whether the filter was told 0.3, 1 or
     3 times the data's (10 runs of the paper's simulation each), while the likelihood, the filter
     run again at each value, finds it from 0.3x (0.094 against the 0.1 that made the data)."""
-    from workbench.core import selftune
+    from workbench.core import likelihood
     from workbench.experiments.sea.run import assumed
 
     out = {"acceleration": 1.0, "angles": 1.0}
@@ -51,7 +51,7 @@ def factors(result: Any) -> dict[str, float]:
     if exp is None or cfg is None or exp.parts.tunable is None:
         return out
     told = assumed(result.data, cfg)
-    found = selftune.maximum_likelihood(exp, result.data, cfg)
+    found = likelihood.maximum_likelihood(exp, result.data, cfg)
     arcmin = np.degrees(1.0) * 60.0
     own = {"sigma_acc": told.sigma_acc, "sigma_alpha_arcmin": told.sigma_alpha * arcmin,
            "sigma_beta_arcmin": told.sigma_beta * arcmin}
