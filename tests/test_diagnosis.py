@@ -227,3 +227,15 @@ def test_the_whole_distribution_is_tested_not_its_mean():
     assert bad["gof_p"] < 1e-3 and bad["gof_scaled_p"] < 1e-3
     good = diagnosis.goodness_of_fit(rng.chisquare(1, 3000), np.ones(3000), 1.0)
     assert good["gof_p"] > 0.01
+
+
+def test_the_consistency_line_names_the_diagnosis_when_it_alone_decides():
+    """An estimator no truth-free test judges (a smoother without innovations), its verdict the
+    diagnosis's: the line says so rather than "not consistent ()"."""
+    from workbench.metrics import tables
+
+    d = {"verdict": "outliers", "consistent": False, "factor": None, "group": None, "tail_share": 0.16,
+         "reason": "a tail", "groups": {}}
+    stats = {"estimators": {"isam2": {"diagnosis": d, "consistent_without_truth": False}}, "metric_table": {}}
+    text = "\n".join(tables.verdicts(stats))
+    assert "without truth **not consistent** (the diagnosis: outliers" in text and "()" not in text

@@ -146,6 +146,8 @@ def verdicts(stats: Mapping) -> list[str]:
                 continue
             tests = [_test(m, e) for m, d in described.items()
                      if d.get("truth_free", False) == free and e.get(f"{m}_consistent") is not None]
+            if free and (e.get("diagnosis") or {}).get("consistent") is not None:
+                tests.append(f"the diagnosis: {diagnosis.line(e['diagnosis'])}")   # it joins the verdict
             parts.append(f"{what} {'consistent' if e[key] else '**not consistent**'} ({'; '.join(tests)})")
         found = e.get("diagnosis")
         if found:
