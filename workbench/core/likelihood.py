@@ -12,10 +12,12 @@ import numpy as np
 from workbench.core import selftune
 
 
-def maximum_likelihood(exp: Any, data: Any, cfg: Any, method: str | None = None) -> dict[str, tuple[float, bool]]:
+def maximum_likelihood(exp: Any, data: Any, cfg: Any, method: str | None = None
+                       ) -> dict[str, tuple[float, float, bool]]:
     """The noise ``data`` carry by the tunable filter's likelihood of all of it, from what ``cfg``
     tells (the search of :func:`.selftune.tune_noise` without its cross-validation: a dataset's own
-    values, not a config for another): value name -> (value, identified by the Hessian as there). What the
+    values, not a config for another): value name -> (the told value, the found one, identified by the
+    Hessian there). What the
     parametric bootstrap simulates with (:mod:`workbench.metrics.bootstrap`): the likelihood
     identifies a noise the innovations' one-step split does not (sea's acceleration, whose share of
     an innovation is small)."""
@@ -27,7 +29,7 @@ def maximum_likelihood(exp: Any, data: Any, cfg: Any, method: str | None = None)
     obj = selftune._Objective(exp, data, cfg, filt, names)
     obj.ref = obj.run(x0)
     if obj.ref is None or not math.isfinite(obj.ref.charged()):
-        return {n: (start[n], False) for n in names}
+        return {n: (start[n], start[n], False) for n in names}
 
     def whole(x: np.ndarray) -> float:
         return obj.value(x, None)
@@ -38,4 +40,4 @@ def maximum_likelihood(exp: Any, data: Any, cfg: Any, method: str | None = None)
         x1 = x0
     H, _ = selftune.hessian(whole, x1)
     _, identified = selftune.intervals(H, x1, drop=selftune.rough(whole, x1, H))
-    return {n: (float(math.exp(v)), bool(i)) for n, v, i in zip(names, x1, identified, strict=True)}
+    return {n: (float(start[n]), float(math.exp(v)), bool(i)) for n, v, i in zip(names, x1, identified, strict=True)}

@@ -44,18 +44,13 @@ def factors(result: Any) -> dict[str, float]:
     3 times the data's (10 runs of the paper's simulation each), while the likelihood, the filter
     run again at each value, finds it from 0.3x (0.094 against the 0.1 that made the data)."""
     from workbench.core import likelihood
-    from workbench.experiments.sea.run import assumed
 
     out = {"acceleration": 1.0, "angles": 1.0}
     exp, cfg = result.experiment, result.config
     if exp is None or cfg is None or exp.parts.tunable is None:
         return out
-    told = assumed(result.data, cfg)
     found = likelihood.maximum_likelihood(exp, result.data, cfg)
-    arcmin = np.degrees(1.0) * 60.0
-    own = {"sigma_acc": told.sigma_acc, "sigma_alpha_arcmin": told.sigma_alpha * arcmin,
-           "sigma_beta_arcmin": told.sigma_beta * arcmin}
-    ratio = {n: v / own[n] for n, (v, ok) in found.items() if ok and own.get(n, 0) > 0}
+    ratio = {n: v / told for n, (told, v, ok) in found.items() if ok and told > 0}
     if "sigma_acc" in ratio:
         out["acceleration"] = float(np.clip(ratio["sigma_acc"], *FACTOR_RANGE))
     angles = [ratio[n] for n in ("sigma_alpha_arcmin", "sigma_beta_arcmin") if n in ratio]

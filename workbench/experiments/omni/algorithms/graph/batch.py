@@ -56,15 +56,13 @@ def batch(data: OmniData, cfg: OmniConfig, kf: Keyframes | None = None,
     covs, lm_cov = _batch_marginals(graph, result, E, marks.inserted)
     for _ in range(REGATE_ROUNDS if cfg.nis_gate > 0.0 or outlier_rate(cfg) > 0.0 else 0):
         again = _regate(data, cfg, kf, result, covs, lm_cov, marks.inserted)
-        again, moved = _relocate(data, cfg, kf, marks, again, result)
-        again, ghosts = _ghosts(data, cfg, kf, marks, again)
+        rays = _rays(kf, marks)
+        again, moved = _relocate(data, cfg, rays, marks, again, result)
+        again, ghosts = _ghosts(data, cfg, rays, again)
         if again == rejected and not moved and not ghosts:
             break
         rejected = again
-        result = _drop_unseen(kf, marks, rejected, result)
-        for lm in ghosts:
-            if result.exists(L(lm)):
-                result.erase(L(lm))
+        result = _drop_unseen(kf, marks, rejected, result)   # the ghosts too: every bearing of theirs left out
         graph = _batch_graph(data, kf, marks, rejected)
         result = gtsam.LevenbergMarquardtOptimizer(graph, result, _lm_params(100)).optimize()
         covs, lm_cov = _batch_marginals(graph, result, E, marks.inserted)
@@ -117,9 +115,20 @@ def chance_agreement(n: int, k: int, p: float) -> float:
     return float(min(1.0, n * (n - 1) / 2 * binom.sf(k - 3, n - 2, p)))
 
 
-def _ghosts(data: OmniData, cfg: OmniConfig, kf: Keyframes, marks: _Landmarks, rejected: set[tuple[int, int]]
-            ) -> tuple[set[tuple[int, int]], list[int]]:
-    """Landmarks that misread ids alone made: taken out of the map, their bearings left out.
+def _rays(kf: Keyframes, marks: _Landmarks) -> dict[int, list[tuple[int, float]]]:
+    """Each landmark in the map -> its bearings ``(keyframe, bearing)``."""
+    rays: dict[int, list[tuple[int, float]]] = {}
+    for e, (lms, bearings) in enumerate(kf.bearings):
+        for lm, b in zip(lms.tolist(), bearings.tolist(), strict=True):
+            if marks.inserted[lm]:
+                rays.setdefault(lm, []).append((e, b))
+    return rays
+
+
+def _ghosts(data: OmniData, cfg: OmniConfig, rays: dict[int, list[tuple[int, float]]],
+            rejected: set[tuple[int, int]]) -> tuple[set[tuple[int, int]], list[int]]:
+    """Landmarks that misread ids alone made: every bearing of theirs left out (so
+    :func:`_drop_unseen` takes them out of the map).
 
     A misread id (a barcode read wrong, a wrong association) hands an id a bearing of another
     landmark; an id never seen for real gets only such rays, pointing anywhere, and three of five
@@ -129,24 +138,18 @@ def _ghosts(data: OmniData, cfg: OmniConfig, kf: Keyframes, marks: _Landmarks, r
     rays that agree with it are more than chance: :func:`chance_agreement` under :data:`CHANCE`,
     the tolerance's share of the field of view the chance that one random ray agrees. A landmark
     whose every bearing agrees is not judged: without a misread there are no random rays."""
-    held = np.zeros(len(marks.inserted), int)
-    left = np.zeros(len(marks.inserted), int)
-    for e, (lms, _) in enumerate(kf.bearings):
-        for lm in lms.tolist():
-            held[lm] += 1
-            left[lm] += (e, lm) in rejected
     p = min(1.0, 2.0 * _tolerance(data, cfg) / min(float(data.fov), 2.0 * math.pi))
     out, gone = set(rejected), []
-    for lm in np.flatnonzero(marks.inserted & (left > 0)):
-        if chance_agreement(int(held[lm]), int(held[lm] - left[lm]), p) > CHANCE:
-            marks.inserted[lm] = False
-            gone.append(int(lm))
-            out.update((e, int(lm)) for e, (lms, _) in enumerate(kf.bearings) if lm in lms)
+    for lm, held in rays.items():
+        left = sum((e, lm) in rejected for e, _ in held)
+        if left and chance_agreement(len(held), len(held) - left, p) > CHANCE:
+            gone.append(lm)
+            out.update((e, lm) for e, _ in held)
     return out, gone
 
 
-def _relocate(data: OmniData, cfg: OmniConfig, kf: Keyframes, marks: _Landmarks, rejected: set[tuple[int, int]],
-              result: gtsam.Values) -> tuple[set[tuple[int, int]], list[int]]:
+def _relocate(data: OmniData, cfg: OmniConfig, rays: dict[int, list[tuple[int, float]]], marks: _Landmarks,
+              rejected: set[tuple[int, int]], result: gtsam.Values) -> tuple[set[tuple[int, int]], list[int]]:
     """Landmarks placed where most of their own bearings disagree, moved to where most agree.
 
     A landmark enters from the first rays that agree (:func:`.landmarks.consensus`); where those
@@ -158,11 +161,6 @@ def _relocate(data: OmniData, cfg: OmniConfig, kf: Keyframes, marks: _Landmarks,
     (within the gate's tolerance), it moves there (``result`` updated in place), those bearings are
     taken in and the rest left out; the next solve starts from it. RANSAC's reading (Fischler and
     Bolles 1981): the place most rays support, not the first few."""
-    rays: dict[int, list[tuple[int, float]]] = {}
-    for e, (lms, bearings) in enumerate(kf.bearings):
-        for lm, b in zip(lms.tolist(), bearings.tolist(), strict=True):
-            if marks.inserted[lm]:
-                rays.setdefault(lm, []).append((e, b))
     tolerance = _tolerance(data, cfg)
     out, moved = set(rejected), []
     for lm, held in rays.items():
