@@ -168,6 +168,39 @@ def test_integrate_is_the_step_by_step_recursion_7():
     assert np.allclose(phi, prod)
     assert all(np.linalg.eigvalsh(c).min() > -1e-15 for c in covs)
 
+def test_the_covariance_recursion_unrolled_is_the_step_by_step_one():
+    """motion._recursion: ``P[k+1] = F P F' + N`` with ``F = I + a e3'``, from prefix sums, equals the
+    loop a step at a time (to round-off over 20,000 steps whose cross terms reach hundreds), for
+    each motion model's covariances through Motion.propagate as well."""
+    from workbench.experiments.omni.motion import _recursion
+
+    rng = np.random.default_rng(7)
+    for k in (0, 1, 4, 20_000):
+        a = rng.normal(size=(k, 2)) * 0.05
+        m = rng.normal(size=(k, 3, 3))
+        noise = m @ m.transpose(0, 2, 1) * 1e-4
+        p0 = np.array([[0.3, 0.1, -0.05], [0.1, 0.2, 0.02], [-0.05, 0.02, 0.01]])
+        want = np.empty((k + 1, 3, 3))
+        want[0] = p = p0
+        for i in range(k):
+            f = np.eye(3)
+            f[:2, 2] = a[i]
+            want[i + 1] = p = f @ p @ f.T + noise[i]
+        got = _recursion(p0, a, noise)
+        assert np.allclose(got, want, rtol=1e-11, atol=1e-11 * max(1.0, float(np.abs(want).max())))
+        assert np.array_equal(got, got.transpose(0, 2, 1))
+    for model, sigma in (("unicycle", (0.05, 0.03)), ("bicycle", (0.1, 0.02)), ("increments", (0.01, 0.01, 0.002))):
+        mo = Motion(model, 2.0, sigma)
+        u = rng.normal(size=(300, 3 if model == "increments" else 2)) * 0.1 + 0.5
+        poses, covs, _ = mo.propagate(np.array([1.0, 2.0, 0.3]), np.diag([0.01, 0.02, 0.003]), u, 0.1)
+        fr, fu = mo.jacobians(poses[:-1], u, 0.1)
+        noise = mo.step_noise(fu, 0.1)
+        p = np.diag([0.01, 0.02, 0.003])
+        for i in range(len(u)):
+            p = fr[i] @ p @ fr[i].T + noise[i]
+        np.testing.assert_allclose(covs[-1], p, rtol=1e-10, atol=1e-14)
+
+
 def test_a_command_switching_at_an_unknown_time_is_the_mean_with_its_variance():
     """real.between: a command u0 replaced by u1 at a time uniform in the step runs, on average,
     (u0 + u1) / 2 with variance (u1 - u0)^2 / 12; checked against 200,000 drawn switch times, and

@@ -322,3 +322,23 @@ def test_a_sweep_over_an_estimator_that_never_returns_ends(tmp_path, plugin):
     failed = rows[rows["failed"]]
     assert set(failed["estimator"]) == {"sleeps_forever"} and failed["unit"].str.contains("timed out").all()
     assert len(set(rows[(rows["estimator"] == "geometric") & ~rows["failed"]]["run"])) == 4
+
+
+def test_psd_takes_sylvester_s_shortcut_only_where_it_is_sure():
+    """estimator.psd: 2x2 and 3x3 covariances whose leading minors are positive pass without their
+    eigenvalues; a singular PSD one (a zero minor) is asked the eigenvalues and passes; an indefinite
+    one whose diagonal is positive, and one indefinite only to round-off's size, are told apart."""
+    from workbench.core.estimator import EstimateError, _leading_minors_positive, psd
+
+    good = np.array([[[2.0, 0.5, 0.1], [0.5, 1.0, 0.2], [0.1, 0.2, 0.5]]] * 3)
+    singular = np.array([[1.0, 1.0, 0.0], [1.0, 1.0, 0.0], [0.0, 0.0, 1.0]])
+    bad = np.array([[1.0, 0.0, 0.9], [0.0, 1.0, 0.9], [0.9, 0.9, 1.0]])   # eigenvalue 1 - 0.9 sqrt(2) < 0
+    assert _leading_minors_positive(good).all()
+    assert not _leading_minors_positive(np.stack([singular, bad])).any()
+    assert not _leading_minors_positive(np.eye(4)[None]).any()            # larger: the eigenvalues decide
+    psd(np.concatenate([good, singular[None]]), "cov")
+    psd(np.array([[1.0, 1.0], [1.0, 1.0 - 1e-13]]), "cov")               # indefinite by round-off: PSD
+    with pytest.raises(EstimateError, match="not positive semi-definite at row 1"):
+        psd(np.stack([good[0], bad]), "cov")
+    with pytest.raises(EstimateError, match="not positive semi-definite"):
+        psd(np.array([[[1.0, 2.0], [2.0, 1.0]]]), "cov")

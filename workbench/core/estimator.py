@@ -280,10 +280,33 @@ def psd(cov: np.ndarray, what: str, rows: np.ndarray | None = None, estimator: E
     if (asym > 1e-6).any():
         k = int(np.flatnonzero(finite)[np.argmax(asym > 1e-6)])
         raise EstimateError(f"{what} is not symmetric at row {k}")
-    low = np.linalg.eigvalsh((c + np.swapaxes(c, -1, -2)) / 2).min(axis=-1)
+    sym = (c + np.swapaxes(c, -1, -2)) / 2
+    low = np.zeros(c.shape[:-2])
+    doubt = ~_leading_minors_positive(sym)   # positive definite by Sylvester's criterion: no eigenvalues needed
+    if doubt.any():
+        low[doubt] = np.linalg.eigvalsh(sym[doubt]).min(axis=-1)
     if (low < -1e-9 * scale).any():
         k = int(np.flatnonzero(finite)[np.argmax(low < -1e-9 * scale)])
         raise EstimateError(f"{what} is not positive semi-definite at row {k} (eigenvalue {low.min():.3g})")
+
+
+def _leading_minors_positive(c: np.ndarray) -> np.ndarray:
+    """Per symmetric matrix of ``c (..., n, n)``, whether its leading principal minors are all
+    positive (Sylvester's criterion: positive definite), in closed form for ``n <= 3`` (the poses'
+    and the landmarks' covariances, tens of thousands per estimate); False (ask the eigenvalues)
+    for larger ones."""
+    n = c.shape[-1]
+    if n > 3:
+        return np.zeros(c.shape[:-2], bool)
+    ok = c[..., 0, 0] > 0
+    if n >= 2:
+        ok &= c[..., 0, 0] * c[..., 1, 1] - c[..., 0, 1] * c[..., 1, 0] > 0
+    if n == 3:
+        det = (c[..., 0, 0] * (c[..., 1, 1] * c[..., 2, 2] - c[..., 1, 2] * c[..., 2, 1])
+               - c[..., 0, 1] * (c[..., 1, 0] * c[..., 2, 2] - c[..., 1, 2] * c[..., 2, 0])
+               + c[..., 0, 2] * (c[..., 1, 0] * c[..., 2, 1] - c[..., 1, 1] * c[..., 2, 0]))
+        ok &= det > 0
+    return ok
 
 
 # --- naming an estimator: built-ins, installed plugins, specs, functions ---------------------------

@@ -294,6 +294,8 @@ class BearingEkf:
             mu = np.concatenate([sight["pose"], self.x[:3], [sight["bearing"], bearing]])
             cov = np.diag(np.concatenate([sight["var"], np.diag(self.P[:3, :3]), [0.0, 0.0]]))
         cov[6, 6], cov[7, 7] = sight.get("r2", r2), r2
+        if not self.trace and triangulation.parallax(mu) < math.radians(cfg.min_parallax_deg):
+            return False   # rejected whatever the UT says (both gates need the parallax): not pushed through it
         att = triangulation.attempt(mu, cov, cfg.skew_gate, math.radians(cfg.min_parallax_deg), cfg.kappa)
         accepted, mean = att.accepted, att.mean
         G = triangulation.jacobian(mu)

@@ -89,10 +89,15 @@ class Attempt:
     points: np.ndarray
 
 
+def parallax(mu: np.ndarray) -> float:
+    """The angle between the two rays of ``mu`` (8-dim, as :func:`rays`' rows), radians."""
+    return float(abs(wrap((mu[5] + mu[7]) - (mu[2] + mu[6]))))
+
+
 def attempt(mu: np.ndarray, cov: np.ndarray, skew_gate: float, min_parallax: float,
             kappa: float = 1.0) -> Attempt:
     """Triangulate ``N(mu, cov)`` (8-dim, (2)-(3)) through the UT (4)-(5) and apply the gate."""
-    parallax = float(abs(wrap((mu[5] + mu[7]) - (mu[2] + mu[6]))))
+    angle = parallax(mu)
     points, weights = unscented.sigma_points(mu, cov, kappa)
     images, s_i, s_j = rays(points)
     with np.errstate(invalid="ignore"):  # a sigma point on parallel rays is inf: rejected below
@@ -100,9 +105,9 @@ def attempt(mu: np.ndarray, cov: np.ndarray, skew_gate: float, min_parallax: flo
         c, s = np.cos(mu[5]), np.sin(mu[5])
         skew = ut.skewness(np.array([[c, -s], [s, c]]))
     if not (np.all(s_i > 0) and np.all(s_j > 0) and np.isfinite(ut.points).all()):
-        return Attempt(False, "behind", ut.mean, ut.cov, skew, parallax, ut.points)
-    if parallax < min_parallax:
-        return Attempt(False, "parallax", ut.mean, ut.cov, skew, parallax, ut.points)
+        return Attempt(False, "behind", ut.mean, ut.cov, skew, angle, ut.points)
+    if angle < min_parallax:
+        return Attempt(False, "parallax", ut.mean, ut.cov, skew, angle, ut.points)
     if np.max(np.abs(skew)) >= skew_gate:
-        return Attempt(False, "skewness", ut.mean, ut.cov, skew, parallax, ut.points)
-    return Attempt(True, "ok", ut.mean, ut.cov, skew, parallax, ut.points)
+        return Attempt(False, "skewness", ut.mean, ut.cov, skew, angle, ut.points)
+    return Attempt(True, "ok", ut.mean, ut.cov, skew, angle, ut.points)

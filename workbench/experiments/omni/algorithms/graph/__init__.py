@@ -44,16 +44,11 @@ from workbench.experiments.omni.algorithms.graph.gating import (
 from workbench.experiments.omni.algorithms.graph.incremental import (
     JUMP_HEADING,
     JUMP_POSITION,
-    MAP_FULL,
-    _held_residuals,
+    PASS_BUDGET,
     _Incremental,
     _jumped,
-    _landmark_marginal,
-    _marginal,
-    _point_of,
-    isam2,
-    read_map,
 )
+from workbench.experiments.omni.algorithms.graph.isam2_estimator import _held_residuals, isam2
 from workbench.experiments.omni.algorithms.graph.keyframes import (
     FLOOR,
     Keyframes,
@@ -76,6 +71,13 @@ from workbench.experiments.omni.algorithms.graph.landmarks import (
     consensus,
     refine,
 )
+from workbench.experiments.omni.algorithms.graph.marginals import (
+    MAP_FULL,
+    _landmark_marginal,
+    _marginal,
+    _point_of,
+    read_map,
+)
 from workbench.experiments.omni.algorithms.graph.starts import (
     FIT_TEST,
     GROWN_EVERY,
@@ -90,7 +92,7 @@ from workbench.experiments.omni.algorithms.graph.starts import (
 )
 
 __all__ = [
-    "FIT_TEST", "FLOOR", "GROWN_EVERY", "JUMP_HEADING", "JUMP_POSITION", "Keyframes", "MAP_FULL",
+    "FIT_TEST", "FLOOR", "GROWN_EVERY", "JUMP_HEADING", "JUMP_POSITION", "Keyframes", "MAP_FULL", "PASS_BUDGET",
     "REGATE_ROUNDS", "Start", "_Incremental", "_Landmarks", "_batch_graph", "_batch_marginals", "_bearing_test",
     "_best_start", "_drop_unseen", "_held_residuals", "_jumped", "_landmark_marginal", "_lm_params",
     "_marginal", "_noise", "_odometry_graph", "_parallax_ok", "_point_of", "_pose", "_prepare", "_prior",

@@ -2,11 +2,11 @@
 every keyframe; its newest pose at that time is what a causal estimator knows, so it is
 comparable to the filter's. A damped Levenberg-Marquardt pass over the graph so far runs only
 where an update runs away; with ``lm_every > 0`` also every ``lm_every`` seconds and whenever a
-landmark enters (:class:`_Incremental` says why that is no longer the default)."""
+landmark enters (:class:`_Incremental` says why that is no longer the default), the passes' cost
+held to :data:`PASS_BUDGET`. The estimator that reads it is :func:`.isam2_estimator.isam2`."""
 
 from __future__ import annotations
 
-import functools
 import math
 from collections.abc import Callable
 
@@ -15,8 +15,7 @@ import numpy as np
 from gtsam.symbol_shorthand import L, X
 
 from workbench.estimation.metrics import chi2_quantile
-from workbench.experiments.omni.algorithms import residuals
-from workbench.experiments.omni.algorithms.graph.gating import _bearing_test, gate_of, gated_indices, outlier_rate
+from workbench.experiments.omni.algorithms.graph.gating import _bearing_test, gate_of, outlier_rate
 from workbench.experiments.omni.algorithms.graph.keyframes import (
     Keyframes,
     _lm_params,
@@ -24,25 +23,27 @@ from workbench.experiments.omni.algorithms.graph.keyframes import (
     _pose,
     _prior,
     compose_cov,
-    keyframes,
     to_world,
 )
-from workbench.experiments.omni.algorithms.graph.landmarks import _batch_graph, _Landmarks
+from workbench.experiments.omni.algorithms.graph.landmarks import _Landmarks
 from workbench.experiments.omni.algorithms.graph.marginals import (
-    MAP_FULL,
-    _landmark_marginal,
     _marginal,
-    _point_of,
-    read_map,
 )
 from workbench.experiments.omni.config import OmniConfig
-from workbench.experiments.omni.estimate import SlamEstimate
 from workbench.experiments.omni.scenario import OmniData
 
 JUMP_POSITION = 2.0
 
 
 JUMP_HEADING = math.radians(10.0)
+
+PASS_BUDGET = 10.0
+"""The whole-graph LM passes at run-aways may solve, summed, at most this many graphs of the log's
+length so far (their keyframes, each pass's count): the passes' cost then grows as the log does,
+not as its square. A run whose iSAM2 runs away again as soon as a pass rebuilds it spends the
+budget, and iSAM2 is given up (as where a pass throws). On MRCLAM 6 at the scenario's noise the
+passes spend 0.4-1.6 of it (3-8 passes, measured); told a bearing sigma of 0.58 deg, robot 1's
+would have spent 84 (205 passes)."""
 
 
 def _jumped(predicted: gtsam.Pose2, estimate: gtsam.Pose2) -> bool:
@@ -113,6 +114,8 @@ class _Incremental:
         self.current = gtsam.Pose2(*data.start)
         self.failures = 0
         self.passes = 0
+        self.pass_work = 0        # the keyframes of every run-away pass's graph, summed (PASS_BUDGET)
+        self.gave_up: int | None = None   # the keyframe at which iSAM2 was given up, if it was
         self.last_pass = 0.0
         self.done = -1
         # the bearing gate (``nis_gate`` > 0): the chain's pose covariance (world frame) since
@@ -183,8 +186,18 @@ class _Incremental:
         self.start.update(X(e), self.chain)
         self.done = e
         t = self.data.t[kf.steps[e]]
-        if threw or (cfg.lm_every > 0.0 and (entered or t - self.last_pass >= cfg.lm_every)):
+        periodic = cfg.lm_every > 0.0 and (entered or t - self.last_pass >= cfg.lm_every)
+        if threw and not periodic and self.isam is not None and self.pass_work + e + 1 > PASS_BUDGET * (e + 1):
+            # the run-away passes have solved PASS_BUDGET graphs of the log's length so far: iSAM2
+            # runs away again as soon as it is rebuilt, and more passes would make the cost grow as
+            # the log's square (MRCLAM 6 robot 1 told a bearing sigma of 0.58 deg: 205 passes, 11 s
+            # for a 1 s run). It gives up: the answer is the last pass's carried on with the odometry.
+            self.failures += 1
+            self.gave_up = e
+            self.isam = None
+        elif threw or periodic:
             self.last_pass = t
+            self.pass_work += 0 if periodic else e + 1
             if not self._pass(e) and self.isam is not None:
                 # leave this keyframe's bearings out (the landmarks it completed wait for a
                 # later sighting) and try once more; past that, the solver is dropped and the
@@ -366,8 +379,13 @@ class _Incremental:
         try:
             for _ in range(self.FINAL_SOLVES):
                 self.isam.update(gtsam.NonlinearFactorGraph(), gtsam.Values(), params)
-        except RuntimeError:  # GTSAM's indeterminate system: the answer stays as it was held
-            pass
+        except RuntimeError:
+            # GTSAM's indeterminate system, thrown mid-update, leaves the Bayes tree half
+            # eliminated: every later reading throws too (MRCLAM 6 robot 1 told a bearing sigma of
+            # 0.58 deg, landmark 13). One damped LM pass over the graph rebuilds the solver; where
+            # that throws as well, the answer is the last pass's carried on with the odometry.
+            if not self._pass(self.done):
+                self.isam = None
 
     def estimate(self) -> tuple[np.ndarray, np.ndarray]:
         """The whole trajectory ``(E, 3)`` and map ``(N, 2)`` (NaN: not in the graph) as the
@@ -378,61 +396,3 @@ class _Incremental:
         for lm in self.points:
             points[lm] = values.atPoint2(L(lm))
         return poses, points
-
-
-def isam2(data: OmniData, cfg: OmniConfig, kf: Keyframes | None = None, map_every: float = math.inf
-          ) -> SlamEstimate:
-    """iSAM2, one update per keyframe; the newest pose and its marginal at every keyframe
-    (causal, held to the filtering bound), and its whole trajectory at the end (``smoothed``:
-    iSAM2 is a smoother; this is the answer batch LM is compared with).
-
-    The map is read every ``map_every`` seconds and at the end (:func:`read_map`: the marginals of
-    the landmarks seen since the last reading, all of them every ``MAP_FULL``-th reading and the
-    last); Monte Carlo runs read it once, at the end.
-    """
-    kf = kf or keyframes(data, cfg)
-    inc = _Incremental(data, cfg, kf)
-    n_lm, E = len(data.landmarks), len(kf.steps)
-    poses = np.empty((E, 3))
-    covs = np.empty((E, 3, 3))
-    map_steps, map_mean, map_cov = [], [], []
-    last_map = -math.inf
-    seen = np.zeros(n_lm, bool)
-    cov = np.full((n_lm, 2, 2), np.nan)
-    for e in range(E):
-        poses[e] = inc.step(e)
-        covs[e] = inc.newest_cov if inc.newest_cov is not None else _marginal(inc.isam, X(e), 3)
-        if e == E - 1:
-            inc.finish()
-        seen[kf.bearings[e][0]] = True
-        if data.t[kf.steps[e]] - last_map >= map_every or e == E - 1:
-            last_map = data.t[kf.steps[e]]
-            if inc.isam is None:  # iSAM2 gave up: the LM passes' map
-                mean_of = inc.estimate()[1].__getitem__
-            else:
-                mean_of = functools.partial(_point_of, inc.isam)
-            mean, cov = read_map(list(inc.points), cov, seen, e == E - 1 or len(map_steps) % MAP_FULL == 0,
-                                 mean_of, functools.partial(_landmark_marginal, inc.isam))
-            map_steps.append(kf.steps[e])
-            map_mean.append(mean)
-            map_cov.append(cov)
-    return SlamEstimate("isam2", kf.steps.copy(), poses, to_world(covs, poses[:, 2]), np.array(map_steps),
-                        np.array(map_mean), np.array(map_cov), inc.first_seen, inc.init_step,
-                        failures=inc.failures, lm_passes=inc.passes,
-                        gated_bearings=gated_indices(data, kf, inc.rejected),
-                        smoothed=inc.estimate()[0], residuals=_held_residuals(data, cfg, kf, inc))
-
-
-def _held_residuals(data: OmniData, cfg: OmniConfig, kf: Keyframes, inc: _Incremental):
-    """iSAM2's residuals at the answer it holds at the end (:mod:`.residuals`), over the graph of
-    its landmarks and the bearings it kept; None where it holds none."""
-    if inc.isam is None:
-        return None
-    values = inc.isam.calculateBestEstimate()
-    graph = _batch_graph(data, kf, inc.marks, inc.rejected)
-    try:
-        return residuals.of_graph(graph, values, kf, inc.marks.inserted, inc.rejected, cfg.nis_gate or None)
-    except RuntimeError:  # a variable the graph holds that the answer does not
-        return None
-
-

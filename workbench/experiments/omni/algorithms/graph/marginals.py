@@ -50,6 +50,8 @@ def _marginal(isam: gtsam.ISAM2 | None, key: int, dim: int) -> np.ndarray:
     if isam is None:
         return np.full((dim, dim), np.nan)
     try:
-        return isam.marginalCovariance(key)
+        cov = np.asarray(isam.marginalCovariance(key), float)
     except RuntimeError:
         return np.full((dim, dim), np.nan)
+    # a variable the data hardly constrain (a landmark on near-parallel rays) can read inf
+    return cov if np.isfinite(cov).all() else np.full((dim, dim), np.nan)

@@ -15,7 +15,8 @@ from gtsam.symbol_shorthand import L, X
 
 from workbench.estimation.metrics import chi2_quantile
 from workbench.experiments.omni.algorithms.graph.gating import gate_of, outlier_rate, robust_cost
-from workbench.experiments.omni.algorithms.graph.incremental import _Incremental, isam2
+from workbench.experiments.omni.algorithms.graph.incremental import _Incremental
+from workbench.experiments.omni.algorithms.graph.isam2_estimator import isam2
 from workbench.experiments.omni.algorithms.graph.keyframes import Keyframes, _lm_params
 from workbench.experiments.omni.algorithms.graph.landmarks import _batch_graph, _Landmarks
 from workbench.experiments.omni.config import OmniConfig

@@ -1,0 +1,84 @@
+"""``isam2``, the estimator: :class:`.incremental._Incremental` with iSAM2 updated at every keyframe,
+read as a causal estimator (the newest pose and its marginal at each keyframe) and as a smoother
+(its whole trajectory and map at the end, and its residuals there)."""
+
+from __future__ import annotations
+
+import functools
+import math
+
+import numpy as np
+from gtsam.symbol_shorthand import X
+
+from workbench.experiments.omni.algorithms import residuals
+from workbench.experiments.omni.algorithms.graph.gating import gated_indices
+from workbench.experiments.omni.algorithms.graph.incremental import _Incremental
+from workbench.experiments.omni.algorithms.graph.keyframes import Keyframes, keyframes, to_world
+from workbench.experiments.omni.algorithms.graph.landmarks import _batch_graph
+from workbench.experiments.omni.algorithms.graph.marginals import (
+    MAP_FULL,
+    _landmark_marginal,
+    _marginal,
+    _point_of,
+    read_map,
+)
+from workbench.experiments.omni.config import OmniConfig
+from workbench.experiments.omni.estimate import SlamEstimate
+from workbench.experiments.omni.scenario import OmniData
+
+
+def isam2(data: OmniData, cfg: OmniConfig, kf: Keyframes | None = None, map_every: float = math.inf
+          ) -> SlamEstimate:
+    """iSAM2, one update per keyframe; the newest pose and its marginal at every keyframe
+    (causal, held to the filtering bound), and its whole trajectory at the end (``smoothed``:
+    iSAM2 is a smoother; this is the answer batch LM is compared with).
+
+    The map is read every ``map_every`` seconds and at the end (:func:`read_map`: the marginals of
+    the landmarks seen since the last reading, all of them every ``MAP_FULL``-th reading and the
+    last); Monte Carlo runs read it once, at the end.
+    """
+    kf = kf or keyframes(data, cfg)
+    inc = _Incremental(data, cfg, kf)
+    n_lm, E = len(data.landmarks), len(kf.steps)
+    poses = np.empty((E, 3))
+    covs = np.empty((E, 3, 3))
+    map_steps, map_mean, map_cov = [], [], []
+    last_map = -math.inf
+    seen = np.zeros(n_lm, bool)
+    cov = np.full((n_lm, 2, 2), np.nan)
+    for e in range(E):
+        poses[e] = inc.step(e)
+        covs[e] = inc.newest_cov if inc.newest_cov is not None else _marginal(inc.isam, X(e), 3)
+        if e == E - 1:
+            inc.finish()
+        seen[kf.bearings[e][0]] = True
+        if data.t[kf.steps[e]] - last_map >= map_every or e == E - 1:
+            last_map = data.t[kf.steps[e]]
+            if inc.isam is None:  # iSAM2 gave up: the LM passes' map
+                mean_of = inc.estimate()[1].__getitem__
+            else:
+                mean_of = functools.partial(_point_of, inc.isam)
+            mean, cov = read_map(list(inc.points), cov, seen, e == E - 1 or len(map_steps) % MAP_FULL == 0,
+                                 mean_of, functools.partial(_landmark_marginal, inc.isam))
+            map_steps.append(kf.steps[e])
+            map_mean.append(mean)
+            map_cov.append(cov)
+    return SlamEstimate("isam2", kf.steps.copy(), poses, to_world(covs, poses[:, 2]), np.array(map_steps),
+                        np.array(map_mean), np.array(map_cov), inc.first_seen, inc.init_step,
+                        failures=inc.failures, lm_passes=inc.passes,
+                        gated_bearings=gated_indices(data, kf, inc.rejected),
+                        smoothed=inc.estimate()[0], residuals=_held_residuals(data, cfg, kf, inc))
+
+
+def _held_residuals(data: OmniData, cfg: OmniConfig, kf: Keyframes, inc: _Incremental):
+    """iSAM2's residuals at the answer it holds at the end (:mod:`.residuals`), over the graph of
+    its landmarks and the bearings it kept (where it gave up, at the last pass's answer carried on with
+    the odometry, which is what it returns)."""
+    values = inc.start if inc.isam is None else inc.isam.calculateBestEstimate()
+    graph = _batch_graph(data, kf, inc.marks, inc.rejected)
+    try:
+        return residuals.of_graph(graph, values, kf, inc.marks.inserted, inc.rejected, cfg.nis_gate or None)
+    except RuntimeError:  # a variable the graph holds that the answer does not
+        return None
+
+
