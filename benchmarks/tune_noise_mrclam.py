@@ -54,8 +54,7 @@ def main() -> None:
         print(f"robot {robot}:")
         for line in selftune.lines(rep):
             print("  " + line)
-        told = rep["held_out"]["generalises"] and not rep.get("contradicted")
-        filt = {f"assume_{k}": v for k, v in rep["tuned"].items()} if told else {}
+        filt = {f"assume_{k}": v for k, v in rep["told"].items()}   # what --tune-noise tells the estimators
         sm = rep.get("smoother") or {}
         smooth = {**filt, **{f"assume_{k}": v for k, v in sm.get("values", {}).items()}}
         scores = {"data's": rmse({}, args.data, robot), "filter's": rmse(filt, args.data, robot)}
