@@ -223,9 +223,9 @@ def test_the_whole_distribution_is_tested_not_its_mean():
     rng = np.random.default_rng(9)
     t = rng.standard_t(3, 3000) ** 2
     t /= t.mean()
-    bad = diagnosis.goodness_of_fit(t, np.ones(3000), 1.0)
+    bad = noisefit.goodness_of_fit(t, np.ones(3000), 1.0)
     assert bad["gof_p"] < 1e-3 and bad["gof_scaled_p"] < 1e-3
-    good = diagnosis.goodness_of_fit(rng.chisquare(1, 3000), np.ones(3000), 1.0)
+    good = noisefit.goodness_of_fit(rng.chisquare(1, 3000), np.ones(3000), 1.0)
     assert good["gof_p"] > 0.01
 
 

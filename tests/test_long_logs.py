@@ -106,4 +106,11 @@ def test_isam2_s_passes_at_run_aways_cost_at_most_a_budget_of_whole_solves():
                       estimators=["isam2", "gtsam-batch"])
     got = run.metrics["estimators"]
     assert got["isam2"]["failures"] >= 1 and got["isam2"]["seconds"] < 4.0
+    # the diagnosis names the give-up first (its time, the keyframe's), and never calls it consistent
+    d = got["isam2"]["diagnosis"]
+    at = data.t[kf.steps[inc.gave_up]] - data.t[0]
+    assert d["remarks"] == [r for r in d["remarks"] if r.startswith(f"iSAM2 gave up at {at:.0f} s")] != []
+    assert d["reason"].startswith("iSAM2 gave up") and d["consistent"] is False
+    from workbench.metrics import diagnosis
+    assert diagnosis.line(d).startswith(f"iSAM2 gave up at {at:.0f} s, "), diagnosis.line(d)
     assert got["gtsam-batch"]["position_rmse"] < 0.3   # 0.138 m; 0.144 at the scenario's noise

@@ -256,3 +256,25 @@ def variance_components(r2: np.ndarray, redundancy: float) -> tuple[float, tuple
     s = float(np.sum(r2)) / redundancy
     lo, hi = stats.chi2.ppf([0.975, 0.025], redundancy)
     return s, (s * redundancy / lo, s * redundancy / hi)
+
+
+GOF_ROWS = 5000
+"""The goodness-of-fit tests read at most this many rows (drawn at random, seeded): their p-values are figures
+to read beside the verdict, which the likelihood decides."""
+
+
+def goodness_of_fit(q: np.ndarray, dof: np.ndarray, k: float) -> dict:
+    """The Cramér-von Mises test of the normalised squared innovations of every measurement with
+    one (those a gate left out too) against chi-square with their dimension (``gof_p``: the
+    whole distribution, not its mean: Chen et al. 2018), and against it scaled by the Gaussian fit's
+    factor ``k`` (``gof_scaled_p``: whether a scale alone explains the shape); none where the
+    dimensions differ or a left-out measurement has no figure."""
+    seen = np.isfinite(q)
+    if not seen.any() or (~seen).any() or len(np.unique(dof[seen])) != 1:
+        return {}
+    x = q[seen]
+    if len(x) > GOF_ROWS:  # drawn at random, seeded (every n-th would alias with the runs' steps)
+        x = x[np.sort(np.random.default_rng(0).choice(len(x), GOF_ROWS, replace=False))]
+    m = float(dof[seen][0])
+    return {"gof_p": float(stats.cramervonmises(x, stats.chi2(m).cdf).pvalue),
+            "gof_scaled_p": float(stats.cramervonmises(x / k, stats.chi2(m).cdf).pvalue)}

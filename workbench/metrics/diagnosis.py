@@ -108,6 +108,7 @@ class Evidence:
     dimension: int = 0
     unmapped: list[float] = field(default_factory=list)  # [measurements of what the map does not hold, all]
     iterated: list[dict[str, float]] = field(default_factory=list)  # each run's iterated variance components
+    remarks: list[str] = field(default_factory=list)  # what the estimator says went wrong (each run's, once)
 
 
 def _censor(kept: np.ndarray, q: np.ndarray, dof: np.ndarray, gate: float | None) -> np.ndarray:
@@ -167,6 +168,7 @@ def evidence(estimate: Any, metrics: Mapping[str, Any] | None = None, dimension:
         ev = Evidence("residuals", q, np.full(len(q), r.dof), np.isfinite(q))
     else:
         return None
+    ev.remarks = [str(r) for r in getattr(estimate, "remarks", None) or ()]
     w = metrics.get("innovation_whiteness")
     if w is not None and np.isfinite(w.values).any():
         ev.whiteness = [float(np.nanmean(w.values))]
@@ -214,7 +216,8 @@ def pool(items: list[Evidence]) -> Evidence | None:
         else []
     return Evidence(items[0].kind, cat("q"), cat("dof"), cat("kept"), cat("share"), cat("censor"), items[0].gate,
                     groups, [w for e in items for w in e.whiteness], np.concatenate(dis) if dis else None,
-                    items[0].dimension, unmapped, [d for e in items for d in e.iterated])
+                    items[0].dimension, unmapped, [d for e in items for d in e.iterated],
+                    list(dict.fromkeys(r for e in items for r in e.remarks)))
 
 
 def _outside(value: float | None, interval: tuple[float, float] | None) -> int:
@@ -235,6 +238,18 @@ def _pct(x: float) -> str:
 
 
 def diagnose(ev: Evidence | None, names: Mapping[str, str] | None = None) -> dict | None:
+    """:func:`_diagnose`, with what the estimator says went wrong (``remarks``: iSAM2 given up)
+    leading the reason and the line, and such an estimator never called consistent: its answer
+    from there on is not the method's."""
+    found = _diagnose(ev, names)
+    if found is not None and ev.remarks:
+        found["remarks"] = list(ev.remarks)
+        found["reason"] = "; ".join(ev.remarks) + "; " + found["reason"]
+        found["consistent"] = False
+    return found
+
+
+def _diagnose(ev: Evidence | None, names: Mapping[str, str] | None = None) -> dict | None:
     """The diagnosis of one estimator from its pooled evidence (the module's text): ``verdict``
     (one of :data:`VERDICTS`), ``consistent`` (whether the estimator is, whatever the data hold:
     "consistent", or "outliers" that its gate took out with its noise right otherwise), ``factor``
@@ -265,7 +280,7 @@ def diagnose(ev: Evidence | None, names: Mapping[str, str] | None = None) -> dic
     best = heavy if tailed else plain
     if best is None:
         return {"verdict": "not enough data", "factor": None, "group": None, "reason": "no figure to fit", **out}
-    out.update(goodness_of_fit(ev.q, ev.dof, plain.k))
+    out.update(noisefit.goodness_of_fit(ev.q, ev.dof, plain.k))
     out["scale"] = math.sqrt(best.k)
     out["tail_share"] = best.eps if tailed else 0.0
     out["tail_width"] = math.sqrt(best.c) if tailed else None
@@ -357,11 +372,6 @@ def diagnose(ev: Evidence | None, names: Mapping[str, str] | None = None) -> dic
     return {"verdict": "consistent", "factor": None, "group": None, "consistent": True, "reason": said, **out}
 
 
-GOF_ROWS = 5000
-"""The goodness-of-fit tests read at most this many rows (drawn at random, seeded): their p-values are figures
-to read beside the verdict, which the likelihood decides."""
-
-
 def components(ev: Evidence, names: Mapping[str, str]) -> dict[str, dict]:
     """A smoother's residual groups' variance components (Förstner 1979; one step, at the weights it
     was solved with): group (as ``names`` call it) -> ``factor`` (sigma), its 95 % ``interval``, ``rows``."""
@@ -379,23 +389,6 @@ def identified(interval: Any) -> bool:
     :data:`UNIDENTIFIED`)."""
     iv = interval
     return bool(iv is not None and np.isfinite(iv).all() and iv[0] > 0 and iv[1] / iv[0] < UNIDENTIFIED)
-
-
-def goodness_of_fit(q: np.ndarray, dof: np.ndarray, k: float) -> dict:
-    """The Cramér-von Mises test of the normalised squared innovations of every measurement with
-    one (those a gate left out too) against chi-square with their dimension (``gof_p``: the
-    whole distribution, not its mean: Chen et al. 2018), and against it scaled by the Gaussian fit's
-    factor ``k`` (``gof_scaled_p``: whether a scale alone explains the shape); none where the
-    dimensions differ or a left-out measurement has no figure."""
-    seen = np.isfinite(q)
-    if not seen.any() or (~seen).any() or len(np.unique(dof[seen])) != 1:
-        return {}
-    x = q[seen]
-    if len(x) > GOF_ROWS:  # drawn at random, seeded (every n-th would alias with the runs' steps)
-        x = x[np.sort(np.random.default_rng(0).choice(len(x), GOF_ROWS, replace=False))]
-    m = float(dof[seen][0])
-    return {"gof_p": float(sstats.cramervonmises(x, sstats.chi2(m).cdf).pvalue),
-            "gof_scaled_p": float(sstats.cramervonmises(x / k, sstats.chi2(m).cdf).pvalue)}
 
 
 def attach(stats: dict, evidence: list[Mapping[str, Evidence]], names: Mapping[str, str] | None = None) -> None:
@@ -421,7 +414,7 @@ def line(d: Mapping | None) -> str:
     """A diagnosis in a few words (a table's cell, a recording's title)."""
     if not d:
         return ""
-    text = _words(d)
+    text = ", ".join([*(r.split(":")[0] for r in d.get("remarks") or ()), _words(d)])
     if d.get("covers") is not None and d["verdict"] not in ("overconfident", "conservative"):
         text += f", bootstrap NEES {d['bootstrap_nees']:.1f} " + ("in band" if d["covers"] else "out of band")
     elif d.get("covers") is not None:

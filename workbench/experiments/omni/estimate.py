@@ -38,6 +38,8 @@ class SlamEstimate:
     solved (the batch solves the next start only while the last fit fails its test).
     ``residuals``: a smoother's residuals at its answer by group with their redundancies
     (:class:`~workbench.estimation.consistency.Residuals`: its truth-free diagnosis reads them).
+    ``remarks``: what went wrong that the numbers do not show (iSAM2 given up), which leads its
+    diagnosis's reason.
     """
 
     name: str = ""
@@ -60,6 +62,7 @@ class SlamEstimate:
     start_costs: dict[str, float] = field(default_factory=dict)  # each start's cost
     fit: tuple[float, int] | None = None  # a least-squares smoother's residual chi-square and its dof
     residuals: Residuals | None = None  # a smoother's residuals at its answer by group, for its diagnosis
+    remarks: list[str] = field(default_factory=list)  # what went wrong, in its own words (leads its diagnosis)
 
     @property
     def gated(self) -> int:

@@ -214,7 +214,7 @@ class _Incremental:
                 everything.push_back(motion)
                 self.everything = everything
                 if not self._pass(e):
-                    self.isam = None
+                    self.isam, self.gave_up = None, e
         if self.isam is None:
             self.current = self.chain
         elif self.follow and not threw:
@@ -385,12 +385,17 @@ class _Incremental:
             # 0.58 deg, landmark 13). One damped LM pass over the graph rebuilds the solver; where
             # that throws as well, the answer is the last pass's carried on with the odometry.
             if not self._pass(self.done):
-                self.isam = None
+                self.isam, self.gave_up = None, self.done
+
+    def values(self) -> gtsam.Values:
+        """Every variable as the solver has it now; where iSAM2 gave up (or was never built), the
+        last LM pass's answer carried on with the odometry (what it returns)."""
+        return self.start if self.isam is None else self.isam.calculateBestEstimate()
 
     def estimate(self) -> tuple[np.ndarray, np.ndarray]:
-        """The whole trajectory ``(E, 3)`` and map ``(N, 2)`` (NaN: not in the graph) as the
-        solver (or the last LM pass) has them now."""
-        values = self.start if self.isam is None else self.isam.calculateBestEstimate()
+        """The whole trajectory ``(E, 3)`` and map ``(N, 2)`` (NaN: not in the graph) as
+        :meth:`values` has them."""
+        values = self.values()
         poses = np.array([_pose(values.atPose2(X(k))) for k in range(self.done + 1)])
         points = np.full((len(self.data.landmarks), 2), np.nan)
         for lm in self.points:

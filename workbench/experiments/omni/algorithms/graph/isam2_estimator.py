@@ -67,14 +67,26 @@ def isam2(data: OmniData, cfg: OmniConfig, kf: Keyframes | None = None, map_ever
                         np.array(map_mean), np.array(map_cov), inc.first_seen, inc.init_step,
                         failures=inc.failures, lm_passes=inc.passes,
                         gated_bearings=gated_indices(data, kf, inc.rejected),
-                        smoothed=inc.estimate()[0], residuals=_held_residuals(data, cfg, kf, inc))
+                        smoothed=inc.estimate()[0], residuals=_held_residuals(data, cfg, kf, inc),
+                        remarks=_remarks(data, kf, inc))
+
+
+def _remarks(data: OmniData, kf: Keyframes, inc: _Incremental) -> list[str]:
+    """What went wrong in iSAM2 that its numbers do not show: where it was given up (its run-away
+    passes past their budget, :data:`.incremental.PASS_BUDGET`, or an update no pass could mend),
+    after which its answer is the last LM pass's carried on with the odometry."""
+    if inc.isam is not None:
+        return []
+    at = inc.done if inc.gave_up is None else inc.gave_up
+    return [f"iSAM2 gave up at {data.t[kf.steps[at]] - data.t[0]:.0f} s: after {inc.passes} damped LM pass(es) "
+            "it kept running away; from there on its answer is the last pass's carried on with the odometry"]
 
 
 def _held_residuals(data: OmniData, cfg: OmniConfig, kf: Keyframes, inc: _Incremental):
     """iSAM2's residuals at the answer it holds at the end (:mod:`.residuals`), over the graph of
     its landmarks and the bearings it kept (where it gave up, at the last pass's answer carried on with
     the odometry, which is what it returns)."""
-    values = inc.start if inc.isam is None else inc.isam.calculateBestEstimate()
+    values = inc.values()
     graph = _batch_graph(data, kf, inc.marks, inc.rejected)
     try:
         return residuals.of_graph(graph, values, kf, inc.marks.inserted, inc.rejected, cfg.nis_gate or None)
