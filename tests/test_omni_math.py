@@ -201,6 +201,39 @@ def test_the_covariance_recursion_unrolled_is_the_step_by_step_one():
         np.testing.assert_allclose(covs[-1], p, rtol=1e-10, atol=1e-14)
 
 
+@pytest.mark.parametrize("model", ["unicycle", "bicycle", "increments"])
+@pytest.mark.parametrize("per_second", [False, True])
+def test_a_stretch_from_the_log_s_own_frame_is_propagate_from_the_filter_s_pose(model, per_second):
+    """Motion.frame + Stretches.propagate (the EKF's predict): every stretch of a log read once in
+    its own frame and moved onto a pose is Motion.propagate from that pose over the stretch (poses,
+    covariances, the F_R product), with an anisotropic Q (which does not turn with the heading),
+    irregular steps, each step's own control variance, and headings that wrap."""
+    rng = np.random.default_rng(11)
+    k = 2000
+    three = model == "increments"
+    u = rng.normal(size=(k, 3 if three else 2)) * 0.2 + (0.3 if three else 0.8)
+    dt = rng.uniform(0.01, 0.2, k)
+    cv = None
+    if three:
+        m = rng.normal(size=(k, 3, 3)) * 0.01
+        cv = m @ m.transpose(0, 2, 1)
+        cv[::3] = np.nan   # these rows take the sigmas
+    elif per_second:
+        cv = rng.uniform(0, 1e-3, size=(k, 2))
+    mo = Motion(model, 2.0, (0.01, 0.02, 0.003) if three else (0.05, 0.03), sigma_q=(0.02, 0.001, 0.004),
+                per_second=per_second and not three)
+    whole = mo.frame(u, dt, cv)
+    for i, j in ((0, 1), (0, k), (17, 18), (450, 1310), (1999, 2000), (5, 5)):
+        start = np.array([3.0, -2.0, rng.uniform(-np.pi, np.pi)])
+        cov = np.array([[0.3, 0.1, -0.05], [0.1, 0.2, 0.02], [-0.05, 0.02, 0.01]])
+        want = mo.propagate(start, cov, u[i:j], dt[i:j], None if cv is None else cv[i:j])
+        got = whole.propagate(i, j, start, cov)
+        np.testing.assert_allclose(got[0][:, :2], want[0][:, :2], rtol=0, atol=1e-9)
+        assert np.abs(np.angle(np.exp(1j * (got[0][:, 2] - want[0][:, 2])))).max() < 1e-9
+        np.testing.assert_allclose(got[1], want[1], rtol=1e-9, atol=1e-12)
+        np.testing.assert_allclose(got[2], want[2], rtol=1e-9, atol=1e-12)
+
+
 def test_a_command_switching_at_an_unknown_time_is_the_mean_with_its_variance():
     """real.between: a command u0 replaced by u1 at a time uniform in the step runs, on average,
     (u0 + u1) / 2 with variance (u1 - u0)^2 / 12; checked against 200,000 drawn switch times, and

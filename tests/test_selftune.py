@@ -229,3 +229,33 @@ def test_a_likelihood_that_jumps_is_not_read_as_curvature():
     assert selftune.rough(smooth, x, H).tolist() == [False, True]
     bounds, ok = selftune.intervals(H, x, drop=selftune.rough(smooth, x, H))
     assert ok.tolist() == [True, False] and np.isnan(bounds[1]).all()
+
+
+def test_the_runs_shared_by_forked_processes_are_the_runs_one_by_one():
+    """_Objective.prefetch (the Hessian's and the roughness's runs over two forked processes) caches
+    the very terms the filter gives run by run, and the Hessian read from them is the same to the bit."""
+    from workbench.core import objective, selftune
+    from workbench.core.registry import get
+
+    exp = get("sea")
+    cfg = exp.validate(exp.configure())
+    data = exp.dataset(cfg, 0)
+    filt, start, _ = exp.parts.tunable(data, cfg)
+    names = list(start)
+    x = np.log([start[n] for n in names])
+    one, shared = (objective._Objective(exp, data, cfg, filt, names) for _ in range(2))
+    one.ref = shared.ref = one.run(x)
+    H1, g1 = selftune.hessian(lambda z: one.value(z, None), x)
+    forked = []
+
+    def prefetch(points):   # every point run by the forked processes before the Hessian reads one
+        objective._Objective.prefetch(shared, points)
+        forked.append((len(points), len(shared.cache)))
+
+    H2, g2 = selftune.hessian(lambda z: shared.value(z, None), x, prefetch=prefetch)
+    n = len(x)
+    assert forked == [(1 + 2 * n + 2 * n * (n - 1),) * 2] and len(shared.cache) == len(one.cache)
+    assert np.array_equal(H1, H2) and np.array_equal(g1, g2)
+    for k, got in one.cache.items():
+        other = shared.cache[k]
+        assert np.array_equal(got.nll, other.nll, equal_nan=True) and np.array_equal(got.used, other.used)

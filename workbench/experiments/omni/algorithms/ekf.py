@@ -53,6 +53,7 @@ from workbench.estimation.metrics import chi2_quantile
 from workbench.experiments.omni.algorithms import triangulation
 from workbench.experiments.omni.config import OmniConfig
 from workbench.experiments.omni.estimate import SlamEstimate
+from workbench.experiments.omni.motion import Stretches
 from workbench.experiments.omni.scenario import OmniData
 
 AUGMENTATIONS = ("paper", "clone")
@@ -83,6 +84,7 @@ class BearingEkf:
         # judged on (kept 0), for the truth-free diagnosis; NaN: none
         self.innovations: list[tuple[float, float, float, float, float]] = []
         self.attempts: list = []
+        self.stretches: Stretches | None = None   # the log's odometry in its own frame (:meth:`predict`)
 
     def threshold(self, s: np.ndarray) -> np.ndarray:
         """The NIS beyond which a bearing of innovation variance ``s`` is left out: the chi-square
@@ -93,11 +95,14 @@ class BearingEkf:
         return outliers.gate(s, self.outlier, self.gate)
 
     # --- (7)-(8) ---------------------------------------------------------------------------
-    def predict(self, controls: np.ndarray, dt: np.ndarray, control_var: np.ndarray | None = None
-                ) -> tuple[np.ndarray, np.ndarray]:
-        """Propagate over ``len(controls)`` steps (:meth:`.scenario.OmniData.odometry`'s three
-        arrays); returns the poses and pose covariances."""
-        poses, covs, phi = self.data.motion.propagate(self.x[:3], self.P[:3, :3], controls, dt, control_var)
+    def predict(self, i: int, j: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """Propagate over the log's steps ``i`` to ``j`` (the end: None); returns the poses and pose
+        covariances after each step. The log's odometry is read once, in its own frame
+        (:meth:`.motion.Motion.frame`), and each stretch moved onto the filter's pose."""
+        if self.stretches is None:
+            self.stretches = self.data.motion.frame(*self.data.odometry())
+        j = self.data.steps if j is None else j
+        poses, covs, phi = self.stretches.propagate(i, j, self.x[:3], self.P[:3, :3])
         self.x[:3] = poses[-1]
         self.P[:3, :3] = covs[-1]
         if len(self.x) > 3:
@@ -356,7 +361,7 @@ def run(data: OmniData, cfg: OmniConfig, augmentation: str, name: str, trace: bo
     last = 0
     for e, (step, idx) in enumerate(epochs):
         if step > last:
-            poses[last + 1:step + 1], covs[last + 1:step + 1] = f.predict(*data.odometry(last, step))
+            poses[last + 1:step + 1], covs[last + 1:step + 1] = f.predict(last, step)
             last = step
         lms, bearings = data.meas_lm[idx], data.meas_bearing[idx]
         known = f.slot[lms] >= 0
@@ -383,7 +388,7 @@ def run(data: OmniData, cfg: OmniConfig, augmentation: str, name: str, trace: bo
                 for b in range(2):
                     map_cov[e, on, a, b] = f.P[o + a, o + b]
     if K > last:
-        poses[last + 1:], covs[last + 1:] = f.predict(*data.odometry(last))
+        poses[last + 1:], covs[last + 1:] = f.predict(last)
     innov = np.array(f.innovations, float).reshape(-1, 5)
     return SlamEstimate(name, np.arange(K + 1), poses, covs, map_steps, map_mean, map_cov,
                         f.first_seen, f.init_step, failures=f.failures, gated_bearings=np.array(f.gated, int),

@@ -130,7 +130,7 @@ def associate(data: OmniData, cfg: OmniConfig, track_gate: float | None = None) 
     last = 0
     for step, idx in data.epochs():
         if step > last:
-            f.predict(*data.odometry(last, step))
+            f.predict(last, step)
             last = step
         b = data.meas_bearing[idx]
         free = _match_mapped(f, tr, idx, b, gate)

@@ -1,0 +1,117 @@
+"""The objective ``--tune-noise`` searches (:mod:`.selftune`): a filter's per-measurement negative
+log-likelihood terms on a log (:func:`terms`), and their charged NLL over a part of the log as a
+function of the noise's log-values, each filter run cached and counted (:class:`_Objective`), with
+the runs a search needs all at once shared by forked processes (:meth:`_Objective.prefetch`)."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import multiprocessing
+import os
+from concurrent.futures import ProcessPoolExecutor
+from typing import Any
+
+import numpy as np
+
+from workbench.core.montecarlo import worker_init
+from workbench.errors import WorkbenchError
+
+JOBS = 2   # processes the independent filter runs (the Hessian's, the roughness's) share
+
+
+@dataclasses.dataclass
+class Terms:
+    """A filter's per-measurement NLL terms on a log: each measurement's time, its term (NaN where
+    it was left out or has none) and whether the filter kept it."""
+
+    t: np.ndarray
+    nll: np.ndarray
+    used: np.ndarray
+
+    def charged(self, part: tuple[float, float] | None = None) -> float:
+        """The NLL of the measurements in the time span ``part`` (``(after, up to)``; all: None),
+        each left out charged as the least likely one kept in the span; inf where none is."""
+        mask = self.within(part)
+        kept = self.nll[mask & self.used & np.isfinite(self.nll)]
+        if kept.size == 0:
+            return math.inf
+        return float(kept.sum() + kept.max() * np.count_nonzero(mask & ~(self.used & np.isfinite(self.nll))))
+
+    def within(self, part: tuple[float, float] | None) -> np.ndarray:
+        return np.ones(len(self.t), bool) if part is None else (self.t > part[0]) & (self.t <= part[1])
+
+    def count(self, part: tuple[float, float] | None = None) -> int:
+        return int(np.count_nonzero(self.within(part)))
+
+
+def terms(exp: Any, data: Any, cfg: Any, filt: str, values: dict[str, float]) -> Terms | None:
+    """The filter's terms on ``data`` told ``values`` (config fields without ``assume_``); None if it failed."""
+    told = dataclasses.replace(cfg, **{f"assume_{k}": float(v) for k, v in values.items()})
+    estimates, failed = exp.estimate(data, told, [filt])
+    if filt in failed:
+        return None
+    innov = getattr(estimates[filt], "innovations", None)
+    if innov is None:
+        raise WorkbenchError(f"--tune-noise: {filt} reports no innovations on this data")
+    if innov.outlier:   # a contaminated model: every measurement with an innovation is its term
+        nll = innov.mixture_nll()
+        return Terms(innov.t, nll, np.isfinite(nll))
+    return Terms(innov.t, innov.nll(), innov.used & innov.valid)
+
+
+class _Objective:
+    """The charged NLL of a part of the measurements as a function of the log-values of ``names``,
+    each filter run cached and counted.
+
+    A filter's rows can change with the noise it is told: a SLAM filter initialises a landmark
+    sooner or later, and the bearings it spends on that have no innovation. A sum over a changing
+    set is not the likelihood of the same data (more rows of a likely measurement lower it for that
+    alone), so the part's NLL is its charged mean per row times the part's rows at the start
+    values (``ref``; from the refinement on, at the first part's answer, where the data's rows are
+    nearer what the noise they carry makes): the same data's count at every point of a search, the
+    sum itself where the rows do not change (a Kalman filter's)."""
+
+    def __init__(self, exp: Any, data: Any, cfg: Any, filt: str, names: list[str]):
+        self.exp, self.data, self.cfg, self.filt, self.names = exp, data, cfg, filt, names
+        self.cache: dict[tuple, Terms | None] = {}
+        self.ref: Terms | None = None
+
+    def run(self, x: np.ndarray) -> Terms | None:
+        key = tuple(np.round(np.asarray(x, float), 12))
+        if key not in self.cache:
+            self.cache[key] = terms(self.exp, self.data, self.cfg, self.filt,
+                                    dict(zip(self.names, np.exp(key), strict=True)))
+        return self.cache[key]
+
+    def prefetch(self, points: list[np.ndarray]) -> None:
+        """The filter runs at ``points`` not yet cached, over :data:`JOBS` forked processes (each
+        run is independent; the cache then holds what :meth:`run` would have computed one by one)."""
+        keys = list(dict.fromkeys(tuple(np.round(np.asarray(x, float), 12)) for x in points))
+        keys = [k for k in keys if k not in self.cache]
+        jobs = min(JOBS, os.cpu_count() or 1, len(keys))
+        if jobs < 2 or multiprocessing.get_start_method(allow_none=True) not in (None, "fork"):
+            return
+        global _FORKED
+        _FORKED = (self.exp, self.data, self.cfg, self.filt, self.names)
+        try:
+            with ProcessPoolExecutor(jobs, mp_context=multiprocessing.get_context("fork"),
+                                     initializer=worker_init) as pool:
+                for k, got in zip(keys, pool.map(_forked_terms, keys), strict=True):
+                    self.cache[k] = got
+        finally:
+            _FORKED = None
+
+    def value(self, x: np.ndarray, part: tuple[float, float] | None) -> float:
+        got = self.run(x)
+        if got is None or self.ref is None or not got.count(part):
+            return math.inf
+        return got.charged(part) / got.count(part) * self.ref.count(part)
+
+
+_FORKED: tuple | None = None   # what a forked worker of :meth:`_Objective.prefetch` runs the filter on
+
+
+def _forked_terms(key: tuple) -> Terms | None:
+    exp, data, cfg, filt, names = _FORKED
+    return terms(exp, data, cfg, filt, dict(zip(names, np.exp(key), strict=True)))
