@@ -17,7 +17,7 @@ import numpy as np
 from workbench.core.experiment import RunSummary as Summary
 from workbench.estimation import consistency, metrics
 from workbench.estimation.angles import wrap
-from workbench.experiments.omni import survey
+from workbench.experiments.omni import placed, survey
 from workbench.experiments.omni.config import OmniConfig
 from workbench.experiments.omni.estimate import SlamEstimate
 from workbench.experiments.omni.run import RunResult
@@ -110,6 +110,7 @@ class RunSummary(Summary):
     bounds: dict = field(default_factory=dict)  # delay -> {position, heading} (G,) variances; "map" (N,)
     reference: str | None = None  # no truth: ``errors`` are departures from this smoother, ``nees`` disagreements
     survey: dict[str, dict] = field(default_factory=dict)  # each map against the landmark survey (:mod:`.survey`)
+    unplaced: dict[str, dict] = field(default_factory=dict)  # the landmarks each map cannot place (:mod:`.placed`)
 
 
 def summarise(result: RunResult, cfg: OmniConfig, run: int) -> RunSummary:
@@ -145,8 +146,9 @@ def summarise(result: RunResult, cfg: OmniConfig, run: int) -> RunSummary:
         found = survey.compare(est.final_map, data.landmarks, data.landmark_ids) if len(est.final_map) else None
         if found is not None:
             mapped[name] = found
+    loose = {n: u for n, est in result.estimates.items() if (u := placed.unplaced(data, est)) is not None}
     return RunSummary(run, data.t[grid], errs, sig, nees, result.images.stats if result.images is not None else None,
-                      delays, dict(data.repairs or {}), crb, reference, mapped, failed=dict(result.failed))
+                      delays, dict(data.repairs or {}), crb, reference, mapped, loose, failed=dict(result.failed))
 
 
 def bound_kind(delay: float) -> str:
@@ -167,6 +169,9 @@ def statistics(exp: Any, cfg: OmniConfig, runs: list[RunSummary], stats: dict) -
     for name, found in runs[0].survey.items():  # run 0's map against the survey, landmark by landmark
         if name in stats["estimators"]:
             stats["estimators"][name]["survey"] = found
+    for name, found in runs[0].unplaced.items():  # run 0's landmarks its data cannot place
+        if name in stats["estimators"]:
+            stats["estimators"][name]["unplaced"] = found
     if runs[0].repairs:
         stats["data_repairs"] = runs[0].repairs
     if runs[0].images is not None:

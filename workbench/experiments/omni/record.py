@@ -288,6 +288,17 @@ def _far_off(rec: rr.RecordingStream, path: str, est, found: dict | None, ids: n
                               show_labels=True), static=True)
 
 
+def _unplaced(rec: rr.RecordingStream, path: str, est, found: dict | None, ids: np.ndarray) -> None:
+    """The landmarks of a map its data cannot place (:mod:`.placed`), ringed and labelled, with no truth."""
+    if not found or not found["ids"]:
+        return
+    index = {int(i): k for k, i in enumerate(ids)}
+    xy = est.final_map[[index[i] for i in found["ids"]]]
+    labels = [f"id {i}: cannot place (95 % ellipse {found['reach'][str(i)]:.1f}x its range)" for i in found["ids"]]
+    rec.log(path, rr.Points3D(np.c_[xy, np.full(len(xy), 0.25)], colors=[(255, 160, 0)], radii=[0.5], labels=labels,
+                              show_labels=True), static=True)
+
+
 def record_run(rec: rr.RecordingStream, first: RunResult, zero: RunSummary) -> None:
     """Log run 0 in full (``zero`` is its evaluation): the maps, its errors, sigmas and NEES, the
     round images; what the Monte Carlo runs add comes with :func:`record_runs`."""
@@ -329,6 +340,7 @@ def record_run(rec: rr.RecordingStream, first: RunResult, zero: RunSummary) -> N
                 draw.ellipse_sets(rec, f"{base}/landmark_ellipses", TL, d.t[est.map_steps], est.map_mean,
                                   est.map_cov, rgb)
         _far_off(rec, f"{base}/far_off", est, getattr(zero, "survey", {}).get(name), d.landmark_ids)
+        _unplaced(rec, f"{base}/unplaced", est, getattr(zero, "unplaced", {}).get(name), d.landmark_ids)
         rt, counts, starts, ends = _rays(first, pose, ray_len)
         if len(rt):
             draw.segment_sets(rec, f"{base}/rays", TL, rt, counts, starts, ends, (255, 255, 120), 0.03)

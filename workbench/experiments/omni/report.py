@@ -3,7 +3,7 @@ run, the Cramér-Rao bounds, the image stage's figures, beside the paper's claim
 
 from __future__ import annotations
 
-from workbench.experiments.omni import survey
+from workbench.experiments.omni import placed, survey
 from workbench.experiments.omni.config import BATCH_STARTS
 from workbench.experiments.omni.metrics import BOUNDS, METRICS, TABLE
 from workbench.metrics import tables as markdown
@@ -51,6 +51,8 @@ def table(stats: dict) -> str:
             bits.append(f"{e['bearings_gated']:.0f} bearing(s) left out by the gate (misreads, outliers)")
         if e.get("survey") and (e.get("position_rmse_whole_run") is None or e["survey"]["far"]):
             bits.append(survey.describe(e["survey"]) + (" (run 0)" if stats["runs"] > 1 else ""))
+        if placed.describe(e.get("unplaced")):
+            bits.append(placed.describe(e["unplaced"]) + (" (run 0)" if stats["runs"] > 1 else ""))
         lines.append(f"- {name}: " + "; ".join(bits))
     if stats.get("data_repairs"):
         lines += ["", "Reading the log: " + ", ".join(f"{k.replace('_', ' ')} {v}"

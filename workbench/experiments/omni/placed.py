@@ -1,0 +1,54 @@
+"""The landmarks a map holds that its data cannot place: those whose depth along the rays that saw
+them the bearings do not decide (seen from one side, along the direction of travel, or twice from
+nearly the same place), by the estimator's own covariance, with no truth.
+
+A landmark is *not placed* where its 95 % confidence ellipse (the final map's marginal, the
+2-d chi-square's 95 % point, 2.45 sigma along its major axis) reaches further than the landmark is
+from the poses that saw it (the median range, from the estimator's own poses at those bearings):
+the data then put it anywhere from at the robot to twice as far, which is no place. The reading is
+the estimator's own (an estimator whose noise is too narrow holds too small an ellipse: its
+diagnosis says that), and the landmark's estimate is kept, marked: the user decides.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from workbench.experiments.omni.estimate import SlamEstimate
+from workbench.experiments.omni.scenario import OmniData
+
+REACH = math.sqrt(-2.0 * math.log(0.05))   # the 95 % ellipse's semi-axes in sigmas (2-d: 2.448)
+
+
+def unplaced(data: OmniData, est: SlamEstimate) -> dict | None:
+    """The landmarks of ``est``'s final map the data cannot place (the module's text): ``ids``, and
+    for each the ratio of its ellipse's reach (semi-major axis, 95 %) to its range (``reach``, by id
+    as a string: over 1 is not placed); None where the map has no covariances."""
+    cov = est.final_map_cov
+    if cov is None or est.pose is None or not len(est.map_mean):
+        return None
+    mean = est.final_map
+    steps = np.asarray(est.steps, int)
+    at = np.clip(np.searchsorted(steps, data.meas_step), 0, len(steps) - 1)
+    seen_from = np.asarray(est.pose, float)[at, :2]
+    ratio: dict[str, float] = {}
+    for lm in np.flatnonzero(np.isfinite(mean).all(axis=1) & np.isfinite(cov).all(axis=(1, 2))):
+        rows = (data.meas_lm == lm) & np.isfinite(seen_from).all(axis=1)
+        if not rows.any():
+            continue
+        rng = float(np.median(np.hypot(*(seen_from[rows] - mean[lm]).T)))
+        major = float(np.linalg.eigvalsh(0.5 * (cov[lm] + cov[lm].T))[-1])
+        if rng > 0:
+            ratio[str(int(data.landmark_ids[lm]))] = REACH * math.sqrt(max(major, 0.0)) / rng
+    return {"ids": [int(k) for k, r in ratio.items() if r > 1.0], "reach": ratio}
+
+
+def describe(found: dict | None) -> str:
+    """One line of what :func:`unplaced` found ('' where every landmark is placed)."""
+    if not found or not found["ids"]:
+        return ""
+    return ("the data cannot place " + ", ".join(f"id {i} (95 % ellipse {found['reach'][str(i)]:.1f}x its range)"
+                                                 for i in found["ids"])
+            + ": seen from too little parallax to fix its depth")
