@@ -9,6 +9,7 @@ import dataclasses
 import math
 import multiprocessing
 import os
+from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor
 from typing import Any
 
@@ -85,22 +86,30 @@ class _Objective:
         return self.cache[key]
 
     def prefetch(self, points: list[np.ndarray]) -> None:
-        """The filter runs at ``points`` not yet cached, over :data:`JOBS` forked processes (each
-        run is independent; the cache then holds what :meth:`run` would have computed one by one)."""
+        """The filter runs at ``points`` not yet cached, at once (:meth:`map`; each run is
+        independent: the cache then holds what :meth:`run` would have computed one by one)."""
         keys = list(dict.fromkeys(tuple(np.round(np.asarray(x, float), 12)) for x in points))
-        keys = [k for k in keys if k not in self.cache]
-        jobs = min(JOBS, os.cpu_count() or 1, len(keys))
+        self.map(_run_key, [k for k in keys if k not in self.cache])
+
+    def map(self, fn: Callable[[_Objective, Any], Any], args: list) -> list:
+        """``fn(self, arg)`` for each of ``args`` (``fn`` a module-level function), over :data:`JOBS`
+        forked processes where this machine has the cores (else here, one by one: the same answers,
+        each call's own), the filter runs each made added to the cache."""
+        jobs = min(JOBS, os.cpu_count() or 1, len(args))
         if jobs < 2 or multiprocessing.get_start_method(allow_none=True) not in (None, "fork"):
-            return
+            return [fn(self, a) for a in args]
         global _FORKED
-        _FORKED = (self.exp, self.data, self.cfg, self.filt, self.names)
+        _FORKED = self
         try:
             with ProcessPoolExecutor(jobs, mp_context=multiprocessing.get_context("fork"),
                                      initializer=worker_init) as pool:
-                for k, got in zip(keys, pool.map(_forked_terms, keys), strict=True):
-                    self.cache[k] = got
+                done = list(pool.map(_forked_call, [(fn, a) for a in args]))
         finally:
             _FORKED = None
+        for _, runs in done:
+            for k, got in runs.items():
+                self.cache.setdefault(k, got)
+        return [out for out, _ in done]
 
     def value(self, x: np.ndarray, part: tuple[float, float] | None) -> float:
         got = self.run(x)
@@ -109,9 +118,16 @@ class _Objective:
         return got.charged(part) / got.count(part) * self.ref.count(part)
 
 
-_FORKED: tuple | None = None   # what a forked worker of :meth:`_Objective.prefetch` runs the filter on
+_FORKED: _Objective | None = None   # the objective a forked worker of :meth:`_Objective.map` reads
 
 
-def _forked_terms(key: tuple) -> Terms | None:
-    exp, data, cfg, filt, names = _FORKED
-    return terms(exp, data, cfg, filt, dict(zip(names, np.exp(key), strict=True)))
+def _forked_call(job: tuple) -> tuple[Any, dict]:
+    fn, arg = job
+    obj = _FORKED
+    before = set(obj.cache)
+    out = fn(obj, arg)
+    return out, {k: v for k, v in obj.cache.items() if k not in before}
+
+
+def _run_key(obj: _Objective, key: tuple) -> None:
+    obj.run(np.asarray(key, float))
