@@ -27,7 +27,7 @@ def test_a_landmark_whose_ellipse_reaches_past_its_range_is_not_placed():
     assert found["ids"] == [7]
     assert found["reach"]["7"] == pytest.approx(reach * 4.5 / 9.5)
     assert found["reach"]["8"] == pytest.approx(reach * 1.0 / np.median([10.0, math.hypot(1, 10)]))
-    assert "cannot place id 7 (95 % ellipse 1.2x its range)" in placed.describe(found)
+    assert placed.describe(found) == "the data cannot place id 7 (its 95 % ellipse 1.2x its range): too little parallax"
     assert placed.unplaced(data, SlamEstimate("x", np.array([0]), np.zeros((1, 3)))) is None
 
 
@@ -50,7 +50,7 @@ def test_on_mrclam_the_landmarks_the_ekf_cannot_place_are_its_worst(tmp_path):
     loose = set(map(str, ekf["unplaced"]["ids"]))
     assert loose and set(errors) - loose
     assert min(errors[i] for i in loose) > max(errors[i] for i in set(errors) - loose)
-    assert placed.describe(ekf["unplaced"]) in r.stdout and "the data cannot place id" in r.stdout
+    assert placed.describe(ekf["unplaced"]) in r.stdout and "the data cannot place ids" in r.stdout
     labels = [lab for chunk in RrdReader(str(rrd)).store().stream() if str(chunk.entity_path) == "/map/ekf/unplaced"
               for row in chunk.to_record_batch().column("Points3D:labels").to_pylist() for lab in row or []]
     assert sorted(int(lab.split(":")[0][3:]) for lab in labels) == sorted(ekf["unplaced"]["ids"]), labels

@@ -49,6 +49,9 @@ def describe(found: dict | None) -> str:
     """One line of what :func:`unplaced` found ('' where every landmark is placed)."""
     if not found or not found["ids"]:
         return ""
-    return ("the data cannot place " + ", ".join(f"id {i} (95 % ellipse {found['reach'][str(i)]:.1f}x its range)"
-                                                 for i in found["ids"])
-            + ": seen from too little parallax to fix its depth")
+    ids = found["ids"]
+    reach = ", ".join(f"{found['reach'][str(i)]:.1f}" for i in ids)
+    if len(ids) == 1:
+        return f"the data cannot place id {ids[0]} (its 95 % ellipse {reach}x its range): too little parallax"
+    return (f"the data cannot place ids {', '.join(map(str, ids))} (their 95 % ellipses {reach}x their ranges): "
+            "too little parallax")
