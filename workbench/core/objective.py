@@ -96,7 +96,9 @@ class _Objective:
         forked processes where this machine has the cores (else here, one by one: the same answers,
         each call's own), the filter runs each made added to the cache."""
         jobs = min(JOBS, os.cpu_count() or 1, len(args))
-        if jobs < 2 or multiprocessing.get_start_method(allow_none=True) not in (None, "fork"):
+        if (jobs < 2 or "fork" not in multiprocessing.get_all_start_methods()
+                or multiprocessing.get_start_method(allow_none=True) not in (None, "fork")
+                or multiprocessing.current_process().daemon):   # (a daemon, e.g. a Dask worker, has no children)
             return [fn(self, a) for a in args]
         global _FORKED
         _FORKED = self
