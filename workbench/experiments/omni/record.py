@@ -289,12 +289,13 @@ def _far_off(rec: rr.RecordingStream, path: str, est, found: dict | None, ids: n
 
 
 def _unplaced(rec: rr.RecordingStream, path: str, est, found: dict | None, ids: np.ndarray) -> None:
-    """The landmarks of a map its data cannot place (:mod:`.placed`), ringed and labelled, with no truth."""
+    """The landmarks of a map its data cannot place (:mod:`.placed`), ringed and labelled by id and
+    their 95 % ellipse's reach over their range, with no truth."""
     if not found or not found["ids"]:
         return
     index = {int(i): k for k, i in enumerate(ids)}
     xy = est.final_map[[index[i] for i in found["ids"]]]
-    labels = [f"id {i}: cannot place (95 % ellipse {found['reach'][str(i)]:.1f}x its range)" for i in found["ids"]]
+    labels = [f"id {i}: cannot place ({found['reach'][str(i)]:.1f}x)" for i in found["ids"]]
     rec.log(path, rr.Points3D(np.c_[xy, np.full(len(xy), 0.25)], colors=[(255, 160, 0)], radii=[0.5], labels=labels,
                               show_labels=True), static=True)
 
