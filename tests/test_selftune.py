@@ -259,3 +259,34 @@ def test_the_runs_shared_by_forked_processes_are_the_runs_one_by_one():
     for k, got in one.cache.items():
         other = shared.cache[k]
         assert np.array_equal(got.nll, other.nll, equal_nan=True) and np.array_equal(got.used, other.used)
+
+
+def _prefetch_in_a_daemon(queue) -> None:
+    from workbench.core import objective
+    from workbench.core.registry import get
+
+    exp = get("sea")
+    cfg = exp.validate(exp.configure())
+    data = exp.dataset(cfg, 0)
+    filt, start, _ = exp.parts.tunable(data, cfg)
+    obj = objective._Objective(exp, data, cfg, filt, list(start))
+    x = np.log(list(start.values()))
+    try:
+        obj.prefetch([x, x + 0.1, x - 0.1])
+        queue.put(("ran", len(obj.cache)))
+    except Exception as exc:  # noqa: BLE001 (what a daemon's pool raises is the answer)
+        queue.put(("threw", repr(exc)))
+
+
+def test_a_daemonic_process_runs_the_jobs_itself():
+    """A daemon (a Dask worker is one) may not have children: _Objective.map runs the filter runs in
+    place there, one by one, rather than failing to fork."""
+    import multiprocessing
+
+    ctx = multiprocessing.get_context("fork")
+    queue = ctx.Queue()
+    proc = ctx.Process(target=_prefetch_in_a_daemon, args=(queue,), daemon=True)
+    proc.start()
+    got = queue.get(timeout=120)
+    proc.join(30)
+    assert got == ("ran", 3)
