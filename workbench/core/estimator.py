@@ -298,14 +298,15 @@ def _leading_minors_positive(c: np.ndarray) -> np.ndarray:
     n = c.shape[-1]
     if n > 3:
         return np.zeros(c.shape[:-2], bool)
-    ok = c[..., 0, 0] > 0
-    if n >= 2:
-        ok &= c[..., 0, 0] * c[..., 1, 1] - c[..., 0, 1] * c[..., 1, 0] > 0
-    if n == 3:
-        det = (c[..., 0, 0] * (c[..., 1, 1] * c[..., 2, 2] - c[..., 1, 2] * c[..., 2, 1])
-               - c[..., 0, 1] * (c[..., 1, 0] * c[..., 2, 2] - c[..., 1, 2] * c[..., 2, 0])
-               + c[..., 0, 2] * (c[..., 1, 0] * c[..., 2, 1] - c[..., 1, 1] * c[..., 2, 0]))
-        ok &= det > 0
+    with np.errstate(over="ignore", invalid="ignore"):   # a huge one's minor overflows: inf > 0, NaN doubtful
+        ok = c[..., 0, 0] > 0
+        if n >= 2:
+            ok &= c[..., 0, 0] * c[..., 1, 1] - c[..., 0, 1] * c[..., 1, 0] > 0
+        if n == 3:
+            det = (c[..., 0, 0] * (c[..., 1, 1] * c[..., 2, 2] - c[..., 1, 2] * c[..., 2, 1])
+                   - c[..., 0, 1] * (c[..., 1, 0] * c[..., 2, 2] - c[..., 1, 2] * c[..., 2, 0])
+                   + c[..., 0, 2] * (c[..., 1, 0] * c[..., 2, 1] - c[..., 1, 1] * c[..., 2, 0]))
+            ok &= det > 0
     return ok
 
 
