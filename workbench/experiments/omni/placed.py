@@ -33,15 +33,20 @@ def unplaced(data: OmniData, est: SlamEstimate) -> dict | None:
     steps = np.asarray(est.steps, int)
     at = np.clip(np.searchsorted(steps, data.meas_step), 0, len(steps) - 1)
     seen_from = np.asarray(est.pose, float)[at, :2]
-    ratio: dict[str, float] = {}
-    for lm in np.flatnonzero(np.isfinite(mean).all(axis=1) & np.isfinite(cov).all(axis=(1, 2))):
-        rows = (data.meas_lm == lm) & np.isfinite(seen_from).all(axis=1)
-        if not rows.any():
-            continue
-        rng = float(np.median(np.hypot(*(seen_from[rows] - mean[lm]).T)))
-        major = float(np.linalg.eigvalsh(0.5 * (cov[lm] + cov[lm].T))[-1])
-        if rng > 0:
-            ratio[str(int(data.landmark_ids[lm]))] = REACH * math.sqrt(max(major, 0.0)) / rng
+    lm = np.asarray(data.meas_lm, int)
+    rows = np.isfinite(seen_from).all(axis=1) & np.isfinite(mean[lm]).all(axis=1)
+    if not rows.any():
+        return {"ids": [], "reach": {}}
+    dist = np.hypot(*(seen_from[rows] - mean[lm[rows]]).T)
+    order = np.lexsort((dist, lm[rows]))           # each landmark's ranges together, sorted
+    lms, first, count = np.unique(lm[rows][order], return_index=True, return_counts=True)
+    d = dist[order]
+    rng = 0.5 * (d[first + (count - 1) // 2] + d[first + count // 2])   # each one's median range
+    c = cov[lms]
+    ok = np.isfinite(c).all(axis=(1, 2)) & (rng > 0)
+    major = np.linalg.eigvalsh(0.5 * (c[ok] + c[ok].transpose(0, 2, 1)))[:, -1]
+    reach = REACH * np.sqrt(np.clip(major, 0.0, None)) / rng[ok]
+    ratio = {str(int(data.landmark_ids[i])): float(r) for i, r in zip(lms[ok], reach, strict=True)}
     return {"ids": [int(k) for k, r in ratio.items() if r > 1.0], "reach": ratio}
 
 

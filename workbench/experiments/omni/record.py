@@ -271,33 +271,38 @@ def _pending(first: RunResult, attempts: list) -> tuple[np.ndarray, np.ndarray]:
 
 FAR_OFF = (255, 0, 200)
 """The colour of the landmarks far off the survey, labelled (:mod:`.survey`)."""
+UNPLACED = (255, 160, 0)
+"""The colour of the landmarks the data cannot place, labelled (:mod:`.placed`)."""
+
+
+def _ring(rec: rr.RecordingStream, path: str, est, ids: np.ndarray, which: list[int], labels: list[str],
+          colour: tuple[int, int, int], radius: float, height: float) -> None:
+    """Landmarks ``which`` (ids) of a map ringed at their final estimate, labelled."""
+    if not which:
+        return
+    index = {int(i): k for k, i in enumerate(ids)}
+    xy = est.final_map[[index[i] for i in which]]
+    rec.log(path, rr.Points3D(np.c_[xy, np.full(len(xy), height)], colors=[colour], radii=[radius], labels=labels,
+                              show_labels=True), static=True)
 
 
 def _far_off(rec: rr.RecordingStream, path: str, est, found: dict | None, ids: np.ndarray) -> None:
-    """The landmarks of a map far off the survey, ringed and labelled at their final estimate: by
-    id and error, and the pair the survey or the ids look to have swapped."""
-    if not found or not found["far"]:
+    """The landmarks of a map far off the survey, ringed and labelled: by id and error, and the
+    pair the survey or the ids look to have swapped."""
+    if not found:
         return
     partner = {a: b for a, b in found["swapped"]} | {b: a for a, b in found["swapped"]}
-    index = {int(i): k for k, i in enumerate(ids)}
-    where = [index[i] for i in found["far"]]
-    xy = est.final_map[where]
     labels = [f"id {i}: {found['errors'][str(i)]:.1f} m off"
               + (f", swapped with id {partner[i]}?" if i in partner else "") for i in found["far"]]
-    rec.log(path, rr.Points3D(np.c_[xy, np.full(len(xy), 0.2)], colors=[FAR_OFF], radii=[0.6], labels=labels,
-                              show_labels=True), static=True)
+    _ring(rec, path, est, ids, found["far"], labels, FAR_OFF, 0.6, 0.2)
 
 
 def _unplaced(rec: rr.RecordingStream, path: str, est, found: dict | None, ids: np.ndarray) -> None:
     """The landmarks of a map its data cannot place (:mod:`.placed`), ringed and labelled by id and
     their 95 % ellipse's reach over their range, with no truth."""
-    if not found or not found["ids"]:
-        return
-    index = {int(i): k for k, i in enumerate(ids)}
-    xy = est.final_map[[index[i] for i in found["ids"]]]
-    labels = [f"id {i}: cannot place ({found['reach'][str(i)]:.1f}x)" for i in found["ids"]]
-    rec.log(path, rr.Points3D(np.c_[xy, np.full(len(xy), 0.25)], colors=[(255, 160, 0)], radii=[0.5], labels=labels,
-                              show_labels=True), static=True)
+    if found:
+        _ring(rec, path, est, ids, found["ids"],
+              [f"id {i}: cannot place ({found['reach'][str(i)]:.1f}x)" for i in found["ids"]], UNPLACED, 0.5, 0.25)
 
 
 def record_run(rec: rr.RecordingStream, first: RunResult, zero: RunSummary) -> None:
