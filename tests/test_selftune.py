@@ -115,6 +115,51 @@ def test_intervals_from_the_hessian_and_what_is_not_identified():
     assert np.allclose(H, [[3, 1], [1, 5]]) and np.allclose(g, [1, 0])
 
 
+class _Gaussian:
+    """The runs of a cached objective whose terms are a Gaussian's in its log-sigma ``x``:
+    ``x + r^2 exp(-2x) / 2`` per measurement (the rows fixed)."""
+
+    def __init__(self, r: np.ndarray):
+        self.r = r
+
+    def run(self, x: np.ndarray):
+        from workbench.core.objective import Terms
+
+        return Terms(np.arange(len(self.r), dtype=float), x[0] + 0.5 * self.r**2 * np.exp(-2 * x[0]),
+                     np.ones(len(self.r), bool))
+
+
+def test_the_sandwich_widens_the_interval_where_the_data_are_heavier_tailed_than_the_model():
+    from workbench.core import selftune
+
+    rng = np.random.default_rng(3)
+    # hand-derived: each term's score in x at 0 is 1 - r^2; its central difference at the step h reads
+    # the r^2 part sinh(2h) / 2h steeper (left so: the wide side): J = c^2 sum (r^2 - mean r^2)^2 exactly
+    r = rng.normal(size=200)
+    J = selftune.scores(_Gaussian(r), np.zeros(1), lags=0)
+    c = math.sinh(2 * selftune.H_STEP) / (2 * selftune.H_STEP)
+    assert J[0, 0] == pytest.approx(c**2 * np.sum((r**2 - np.mean(r**2)) ** 2), rel=1e-12)
+    # and the curvature's stencil: 2 sum r^2 at the step reads sinh(h)^2 / h^2 high, CURVED undoes it
+    H, _ = selftune.hessian(lambda z: float(_Gaussian(r).run(z).nll.sum()), np.zeros(1))
+    assert H[0, 0] * selftune.CURVED == pytest.approx(2 * np.sum(r**2), rel=1e-12)
+
+    def widths(r: np.ndarray) -> tuple[float, float]:
+        x = np.array([0.5 * math.log(np.mean(r**2))])          # the maximum likelihood
+        H, _ = selftune.hessian(lambda z: float(_Gaussian(r).run(z).nll.sum()), x)
+        plain, _ = selftune.intervals(H * selftune.CURVED, x)
+        both, _ = selftune.intervals(H * selftune.CURVED, x, J=selftune.scores(_Gaussian(r), x))
+        return float(np.log(plain[0, 1] / plain[0, 0])), float(np.log(both[0, 1] / both[0, 0]))
+
+    # the model right: the two agree (var(r^2) = 2 = the information per measurement, in x), the
+    # sandwich up to the step's c wide
+    plain, both = widths(rng.normal(size=4000))
+    assert 1.0 <= both / plain < 1.05 * c
+    # a Laplace noise of the same variance: var(r^2) = 5, so the estimate's variance is 5/2 the
+    # Hessian's (Huber 1967), a width sqrt(2.5) = 1.58 times (and the step's c)
+    plain, both = widths(rng.laplace(scale=1 / math.sqrt(2), size=4000))
+    assert both / plain == pytest.approx(c * math.sqrt(2.5), rel=0.1)
+
+
 def test_a_scale_on_the_logs_own_covariances_reaches_every_row():
     import dataclasses
 

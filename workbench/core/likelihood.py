@@ -39,5 +39,6 @@ def maximum_likelihood(exp: Any, data: Any, cfg: Any, method: str | None = None
     if whole(x1) > whole(x0):
         x1 = x0
     H, _ = selftune.hessian(whole, x1)
-    _, identified = selftune.intervals(H, x1, drop=selftune.rough(whole, x1, H))
+    _, identified = selftune.intervals(H * selftune.CURVED, x1, drop=selftune.rough(whole, x1, H),
+                                       J=selftune.scores(obj, x1))
     return {n: (float(start[n]), float(math.exp(v)), bool(i)) for n, v, i in zip(names, x1, identified, strict=True)}
