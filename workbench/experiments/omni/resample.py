@@ -40,8 +40,8 @@ FACTOR_RANGE = (0.1, 10.0)
 """An identified noise factor outside this is taken at its end (a run-away variance component)."""
 VCE_ROUNDS = 4
 """The reference smoother's solves at most, the run's own included, to iterate its variance components
-(each round moves a share of the way, about a third on the paper's simulation; Aitken's extrapolation
-takes the rest from the last two)."""
+(each round moves a share of the way, about a third on the paper's simulation; :func:`rest`
+extrapolates the rest from the last steps)."""
 
 
 def reference(result: Any) -> tuple[str, Any]:
@@ -74,7 +74,7 @@ def factors(result: Any, cfg: Any) -> dict[str, float]:
     """The noise factors (sigma) on what the estimators were told that the data identify: the
     reference smoother's variance components, iterated (the smoother solved again with each round's
     factors, at most :data:`VCE_ROUNDS` solves in all) while they contract, the rest of the way
-    extrapolated (Aitken's delta-squared). One step from a wrong start is pulled toward it (Koch,
+    extrapolated (:func:`rest`). One step from a wrong start is pulled toward it (Koch,
     *Parameter Estimation and Hypothesis Testing in Linear Models*, sec. 3.6.3: the estimate is
     unbiased only at the true weights; on the paper's simulation with the odometry assumed 3x too
     wide, one step says 1.5x); the fixed point is the components' maximum likelihood (REML)."""
@@ -95,13 +95,35 @@ def factors(result: Any, cfg: Any) -> dict[str, float]:
             break  # not contracting: keep what it had
         steps.append(step)
         logs = {g: logs[g] + step[g] for g in logs}
-    if len(steps) > 1:  # Aitken: the rest of a linearly converging iteration, its ratio from the last two steps
-        for g in logs:
-            a, b = steps[-2][g], steps[-1][g]
-            r = b / a if a else 0.0
-            if 0.0 < r < 0.9:
-                logs[g] += b * r / (1.0 - r)
+    for g in logs:
+        logs[g] += rest([s[g] for s in steps])
     return {g: float(np.clip(math.exp(v), *FACTOR_RANGE)) for g, v in logs.items()}
+
+
+def rest(steps: list[float]) -> float:
+    """The rest of a converging iteration's sum from its ``steps`` so far (each a step in a log-factor).
+    Two steps: Aitken's delta-squared (the ratio ``r`` of the last two, the rest ``b r / (1 - r)``).
+    Three or more, where the ratio itself shrinks (``r2 < r1``): the ratios taken to go on shrinking
+    by that factor, as variance components do, converging faster as the weights near their fixed
+    point (on the paper's simulation with the odometry told 3x too wide the ratios ran 0.66, 0.62,
+    0.58, 0.54; Aitken from the fourth solve then read 0.316 and 0.306 where ten solves converge on
+    0.333 and 0.323, this 0.333 and 0.323). None (0) where the steps do not contract."""
+    if len(steps) < 2 or not steps[-2]:
+        return 0.0
+    b, r = steps[-1], steps[-1] / steps[-2]
+    if not 0.0 < r < 0.9:
+        return 0.0
+    q = r / (steps[-2] / steps[-3]) if len(steps) >= 3 and steps[-3] else 1.0
+    if not 0.0 < q < 1.0:
+        return b * r / (1.0 - r)
+    total, term = 0.0, b
+    for _ in range(200):
+        r *= q
+        term *= r
+        total += term
+        if abs(term) < 1e-12:
+            break
+    return total
 
 
 def _path(data: OmniData, told: OmniData, k: float, rng: np.random.Generator
