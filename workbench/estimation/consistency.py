@@ -264,7 +264,8 @@ class Residuals:
     diagonal (Förstner 1979: the expectation of the group's ``sum r2`` at a consistent answer; the
     groups' redundancies add up to the residuals less the unknowns), and ``gate``: the probability
     of the smoother's chi-square gate, None without one; ``measurement``: the group whose rows are
-    the measurements (the ones a gate judges, whose tails the diagnosis weighs)."""
+    the measurements (the ones a gate judges, whose tails the diagnosis weighs); ``landmark (M,)``,
+    optional: the landmark (map index) a row measures, -1 for the rest."""
 
     group: np.ndarray
     r2: np.ndarray
@@ -273,6 +274,7 @@ class Residuals:
     redundancy: dict[str, float]
     gate: float | None = None
     measurement: str = "bearing"
+    landmark: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         self.group = np.asarray(self.group).astype(str).ravel()
@@ -280,3 +282,19 @@ class Residuals:
         self.dof = np.asarray(self.dof, int).ravel()
         self.used = np.asarray(self.used, bool).ravel()
         self.redundancy = {str(k): float(v) for k, v in self.redundancy.items()}
+        if self.landmark is not None:
+            self.landmark = np.asarray(self.landmark, int).ravel()
+
+    def missed(self, sigmas: float = 3.0, least: int = 5) -> dict[int, float]:
+        """Each landmark's share of its rows beyond ``sigmas`` at the answer (landmark -> share),
+        for the landmarks with at least ``least`` rows (none without ``landmark``): over a half, the
+        landmark's own measurements reject the place it was given (their median misses it)."""
+        if self.landmark is None:
+            return {}
+        rows = (self.landmark >= 0) & np.isfinite(self.r2)
+        lm, miss = self.landmark[rows], (self.r2[rows] > sigmas**2 * self.dof[rows]).astype(float)
+        if not len(lm):
+            return {}
+        seen = np.bincount(lm)
+        share = np.bincount(lm, weights=miss) / np.maximum(seen, 1)
+        return {int(i): float(share[i]) for i in np.flatnonzero(seen >= least)}

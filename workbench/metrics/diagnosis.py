@@ -169,6 +169,11 @@ def evidence(estimate: Any, metrics: Mapping[str, Any] | None = None, dimension:
     else:
         return None
     ev.remarks = [str(r) for r in getattr(estimate, "remarks", None) or ()]
+    if isinstance(res, Residuals) and (missed := res.missed()):
+        bad = sum(v > 0.5 for v in missed.values())
+        if bad:   # (a landmark's own bearings rejecting its place: :mod:`workbench.experiments.omni.placed`)
+            ev.remarks.append(f"{bad} of {len(missed)} landmarks rejected by their own measurements: most of "
+                              "each one's over 3 sigma off its place (misread ids, or a wrong basin)")
     w = metrics.get("innovation_whiteness")
     if w is not None and np.isfinite(w.values).any():
         ev.whiteness = [float(np.nanmean(w.values))]

@@ -8,6 +8,15 @@ from the poses that saw it (the median range, from the estimator's own poses at 
 the data then put it anywhere from at the robot to twice as far, which is no place. The reading is
 the estimator's own (an estimator whose noise is too narrow holds too small an ellipse: its
 diagnosis says that), and the landmark's estimate is kept, marked: the user decides.
+
+A landmark is *contradicted* where its own bearings reject the place the estimator gave it: the
+median of their whitened residuals at the answer is beyond :data:`MISS` sigma (more than half of
+them miss it by that; a Gaussian leaves 0.27 % out there, MRCLAM's heavy tail 20-24 %), of at least
+:data:`MIN_SEEN` bearings. A median is what a breakdown point of one half allows: a place most
+of the data reject is the misreads' or a wrong start's, not the landmark's (a misread id's ghost: a
+landmark put where a few bearings meant for others happen to cross, its own gated away). A smoother
+gives each bearing's residual at its answer (``Residuals.landmark``); a filter's innovations were
+judged at other states, so it is read for smoothers alone.
 """
 
 from __future__ import annotations
@@ -20,6 +29,8 @@ from workbench.experiments.omni.estimate import SlamEstimate
 from workbench.experiments.omni.scenario import OmniData
 
 REACH = math.sqrt(-2.0 * math.log(0.05))   # the 95 % ellipse's semi-axes in sigmas (2-d: 2.448)
+MISS = 3.0      # a bearing this many sigmas off its landmark's place misses it
+MIN_SEEN = 5    # fewer bearings than this: no median to read
 
 
 def unplaced(data: OmniData, est: SlamEstimate) -> dict | None:
@@ -36,7 +47,7 @@ def unplaced(data: OmniData, est: SlamEstimate) -> dict | None:
     lm = np.asarray(data.meas_lm, int)
     rows = np.isfinite(seen_from).all(axis=1) & np.isfinite(mean[lm]).all(axis=1)
     if not rows.any():
-        return {"ids": [], "reach": {}}
+        return {"ids": [], "reach": {}, **_rejected(est, data.landmark_ids)}
     dist = np.hypot(*(seen_from[rows] - mean[lm[rows]]).T)
     order = np.lexsort((dist, lm[rows]))           # each landmark's ranges together, sorted
     lms, first, count = np.unique(lm[rows][order], return_index=True, return_counts=True)
@@ -47,16 +58,42 @@ def unplaced(data: OmniData, est: SlamEstimate) -> dict | None:
     major = np.linalg.eigvalsh(0.5 * (c[ok] + c[ok].transpose(0, 2, 1)))[:, -1]
     reach = REACH * np.sqrt(np.clip(major, 0.0, None)) / rng[ok]
     ratio = {str(int(data.landmark_ids[i])): float(r) for i, r in zip(lms[ok], reach, strict=True)}
-    return {"ids": [int(k) for k, r in ratio.items() if r > 1.0], "reach": ratio}
+    return {"ids": [int(k) for k, r in ratio.items() if r > 1.0], "reach": ratio,
+            **_rejected(est, data.landmark_ids)}
+
+
+def _rejected(est: SlamEstimate, ids: np.ndarray) -> dict:
+    found = contradicted(est, ids)
+    return {} if found is None else {"contradicted": found["ids"], "missed": found["missed"]}
+
+
+def contradicted(est: SlamEstimate, ids: np.ndarray) -> dict | None:
+    """The landmarks of a smoother's map its own bearings reject (the module's text): ``ids``, and
+    for each landmark with :data:`MIN_SEEN` bearings the share of them beyond :data:`MISS` sigma
+    (``missed``, by id as a string: over a half is contradicted); None without per-landmark residuals."""
+    res = getattr(est, "residuals", None)
+    if res is None or res.landmark is None:
+        return None
+    missed = {str(int(ids[i])): v for i, v in res.missed(MISS, MIN_SEEN).items() if i < len(ids)}
+    return {"ids": [int(k) for k, v in missed.items() if v > 0.5], "missed": missed}
 
 
 def describe(found: dict | None) -> str:
-    """One line of what :func:`unplaced` found ('' where every landmark is placed)."""
-    if not found or not found["ids"]:
+    """One line of what :func:`unplaced` found ('' where every landmark is placed and none contradicted)."""
+    if not found:
         return ""
+    out = []
     ids = found["ids"]
-    reach = ", ".join(f"{found['reach'][str(i)]:.1f}" for i in ids)
-    if len(ids) == 1:
-        return f"the data cannot place id {ids[0]} (its 95 % ellipse {reach}x its range): too little parallax"
-    return (f"the data cannot place ids {', '.join(map(str, ids))} (their 95 % ellipses {reach}x their ranges): "
-            "too little parallax")
+    if ids:
+        reach = ", ".join(f"{found['reach'][str(i)]:.1f}" for i in ids)
+        out.append(f"the data cannot place id {ids[0]} (its 95 % ellipse {reach}x its range): too little parallax"
+                   if len(ids) == 1 else
+                   f"the data cannot place ids {', '.join(map(str, ids))} (their 95 % ellipses {reach}x their "
+                   "ranges): too little parallax")
+    bad = found.get("contradicted") or []
+    if bad:
+        shares = ", ".join(f"{100 * found['missed'][str(i)]:.0f} %" for i in bad)
+        one = len(bad) == 1
+        out.append(f"{'id' if one else 'ids'} {', '.join(map(str, bad))} contradicted by {'its' if one else 'their'} "
+                   f"own bearings ({shares} over {MISS:g} sigma off): misread ids or a wrong basin")
+    return "; ".join(out)

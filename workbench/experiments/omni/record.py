@@ -271,8 +271,8 @@ def _pending(first: RunResult, attempts: list) -> tuple[np.ndarray, np.ndarray]:
 
 FAR_OFF = (255, 0, 200)
 """The colour of the landmarks far off the survey, labelled (:mod:`.survey`)."""
-UNPLACED = (255, 160, 0)
-"""The colour of the landmarks the data cannot place, labelled (:mod:`.placed`)."""
+UNPLACED, CONTRADICTED = (255, 160, 0), (255, 40, 40)
+"""The colours of the landmarks the data cannot place and of those their own bearings reject (:mod:`.placed`)."""
 
 
 def _ring(rec: rr.RecordingStream, path: str, est, ids: np.ndarray, which: list[int], labels: list[str],
@@ -299,10 +299,14 @@ def _far_off(rec: rr.RecordingStream, path: str, est, found: dict | None, ids: n
 
 def _unplaced(rec: rr.RecordingStream, path: str, est, found: dict | None, ids: np.ndarray) -> None:
     """The landmarks of a map its data cannot place (:mod:`.placed`), ringed and labelled by id and
-    their 95 % ellipse's reach over their range, with no truth."""
+    their 95 % ellipse's reach over their range, and those its own bearings reject (``contradicted``,
+    by the share that miss them), with no truth."""
     if found:
         _ring(rec, path, est, ids, found["ids"],
               [f"id {i}: cannot place ({found['reach'][str(i)]:.1f}x)" for i in found["ids"]], UNPLACED, 0.5, 0.25)
+        bad = found.get("contradicted") or []
+        _ring(rec, path.replace("/unplaced", "/contradicted"), est, ids, bad,
+              [f"id {i}: contradicted ({100 * found['missed'][str(i)]:.0f} %)" for i in bad], CONTRADICTED, 0.55, 0.3)
 
 
 def record_run(rec: rr.RecordingStream, first: RunResult, zero: RunSummary) -> None:

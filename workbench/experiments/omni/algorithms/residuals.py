@@ -63,4 +63,4 @@ def of_graph(graph: gtsam.NonlinearFactorGraph, result: gtsam.Values, kf, insert
     redundancy = {"odometry": n_odo - traces.get("odometry", n_odo),
                   "bearing": kept_bearings - traces.get("bearing", kept_bearings)}
     return Residuals(np.array(group, str), np.array(r2, float), np.array(dof, int), np.array(used, bool),
-                     redundancy, gate)
+                     redundancy, gate, landmark=np.concatenate([np.full(len(group) - len(lm_of), -1), lm_of]))
