@@ -57,19 +57,24 @@ def test_on_mrclam_the_landmarks_the_ekf_cannot_place_are_its_worst(tmp_path):
 
 
 def test_a_landmark_most_of_whose_own_bearings_miss_it_is_contradicted():
-    """By hand: landmark 0 has 6 bearings, 4 of them over 3 sigma off (r2 16 > 9): 4/6 miss it,
-    contradicted; landmark 1 has 6, 1 off: not; landmark 2 has 3 (under the 5 a median needs): not
-    read. The odometry's rows (-1) are not a landmark's."""
+    """By hand, the bearings' median r2 at chi-square's median (0.455: their robust scale 1):
+    landmark 0 has 6 bearings, 4 over 3 sigma off (r2 16 > 9): 4/6 miss it, contradicted; landmark 1
+    has 20, 1 off: not; landmark 2 has 3 (under the 5 a median needs): not read. The odometry's rows
+    (-1) are not a landmark's. Every r2 100 times larger (a noise told 10x too narrow): the same."""
+    from scipy.stats import chi2
+
     from workbench.estimation.consistency import Residuals
 
-    r2 = [1.0, 2.0] + [16.0] * 4 + [0.5, 1.0] + [0.1] * 5 + [25.0] + [30.0] * 3
-    lm = [-1, -1] + [0] * 6 + [1] * 6 + [2] * 3
-    res = Residuals(["odometry"] * 2 + ["bearing"] * 15, r2, [3, 3] + [1] * 15, [True] * 17,
-                    {"odometry": 1.0, "bearing": 10.0}, landmark=lm)
-    assert res.missed() == {0: pytest.approx(4 / 6), 1: pytest.approx(1 / 6)}
+    m = chi2.median(1)
+    r2 = np.array([1.0, 2.0] + [16.0] * 4 + [m] * 2 + [25.0] + [m] * 19 + [30.0] * 3)
+    lm = [-1, -1] + [0] * 6 + [1] * 20 + [2] * 3
+    for k in (1.0, 100.0):
+        res = Residuals(["odometry"] * 2 + ["bearing"] * 29, k * r2, [3, 3] + [1] * 29, [True] * 31,
+                        {"odometry": 1.0, "bearing": 10.0}, landmark=lm)
+        assert res.missed() == {0: pytest.approx(4 / 6), 1: pytest.approx(1 / 20)}
     est = types.SimpleNamespace(residuals=res)
     assert placed.contradicted(est, np.array([10, 11, 12])) == {"ids": [10], "missed": {"10": pytest.approx(4 / 6),
-                                                                                        "11": pytest.approx(1 / 6)}}
+                                                                                        "11": pytest.approx(1 / 20)}}
     line = placed.describe({"ids": [], "reach": {}, "contradicted": [10], "missed": {"10": 4 / 6}})
     assert line == "id 10 contradicted by its own bearings (67 % over 3 sigma off): misread ids or a wrong basin"
 
