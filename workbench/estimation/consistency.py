@@ -253,6 +253,10 @@ def below(P_f: np.ndarray, P_s: np.ndarray, tolerance: float = 1e-6) -> np.ndarr
     return out
 
 
+MISS_SIGMAS = 3.0   # a row this many (robust) sigmas off its landmark's place misses it
+MISS_LEAST = 5      # a landmark with fewer rows than this has no median to read
+
+
 @dataclass
 class Residuals:
     """A least-squares smoother's residuals at its answer, one row per measurement or constraint
@@ -285,7 +289,12 @@ class Residuals:
         if self.landmark is not None:
             self.landmark = np.asarray(self.landmark, int).ravel()
 
-    def missed(self, sigmas: float = 3.0, least: int = 5) -> dict[int, float]:
+    def contradicted(self, sigmas: float = MISS_SIGMAS, least: int = MISS_LEAST) -> list[int]:
+        """The landmarks over half of whose rows miss them (:meth:`missed`): their own measurements
+        reject the place they were given."""
+        return [lm for lm, share in self.missed(sigmas, least).items() if share > 0.5]
+
+    def missed(self, sigmas: float = MISS_SIGMAS, least: int = MISS_LEAST) -> dict[int, float]:
         """Each landmark's share of its rows beyond ``sigmas`` at the answer (landmark -> share),
         for the landmarks with at least ``least`` rows (none without ``landmark``): over a half, the
         landmark's own measurements reject the place it was given (their median misses it). The

@@ -51,7 +51,7 @@ import numpy as np
 from scipy import stats as sstats
 
 from workbench.estimation import noisefit
-from workbench.estimation.consistency import Innovations, Residuals
+from workbench.estimation.consistency import MISS_SIGMAS, Innovations, Residuals
 from workbench.estimation.metrics import chi2_quantile
 from workbench.metrics import bootstrap
 from workbench.metrics.truthfree import WHITE_MAX
@@ -169,11 +169,10 @@ def evidence(estimate: Any, metrics: Mapping[str, Any] | None = None, dimension:
     else:
         return None
     ev.remarks = [str(r) for r in getattr(estimate, "remarks", None) or ()]
-    if isinstance(res, Residuals) and (missed := res.missed()):
-        bad = sum(v > 0.5 for v in missed.values())
-        if bad:   # (a landmark's own bearings rejecting its place: :mod:`workbench.experiments.omni.placed`)
-            ev.remarks.append(f"{bad} of {len(missed)} landmarks rejected by their own measurements: most of "
-                              "each one's over 3 sigma off its place (misread ids, or a wrong basin)")
+    if isinstance(res, Residuals) and (bad := res.contradicted()):
+        # (a landmark's own bearings rejecting its place: :mod:`workbench.experiments.omni.placed`)
+        ev.remarks.append(f"{len(bad)} of {len(res.missed())} landmarks rejected by their own measurements: most of "
+                          f"each one's over {MISS_SIGMAS:g} sigma off its place (misread ids, or a wrong basin)")
     w = metrics.get("innovation_whiteness")
     if w is not None and np.isfinite(w.values).any():
         ev.whiteness = [float(np.nanmean(w.values))]

@@ -25,12 +25,12 @@ import math
 
 import numpy as np
 
+from workbench.estimation.consistency import MISS_LEAST, MISS_SIGMAS
 from workbench.experiments.omni.estimate import SlamEstimate
 from workbench.experiments.omni.scenario import OmniData
 
 REACH = math.sqrt(-2.0 * math.log(0.05))   # the 95 % ellipse's semi-axes in sigmas (2-d: 2.448)
-MISS = 3.0      # a bearing this many sigmas off its landmark's place misses it
-MIN_SEEN = 5    # fewer bearings than this: no median to read
+MISS, MIN_SEEN = MISS_SIGMAS, MISS_LEAST   # (a bearing this many sigmas off misses; fewer bearings: no median)
 
 
 def unplaced(data: OmniData, est: SlamEstimate) -> dict | None:
@@ -74,8 +74,8 @@ def contradicted(est: SlamEstimate, ids: np.ndarray) -> dict | None:
     res = getattr(est, "residuals", None)
     if res is None or res.landmark is None:
         return None
-    missed = {str(int(ids[i])): v for i, v in res.missed(MISS, MIN_SEEN).items() if i < len(ids)}
-    return {"ids": [int(k) for k, v in missed.items() if v > 0.5], "missed": missed}
+    missed = {str(int(ids[i])): v for i, v in res.missed().items() if i < len(ids)}
+    return {"ids": [int(ids[i]) for i in res.contradicted() if i < len(ids)], "missed": missed}
 
 
 def describe(found: dict | None) -> str:

@@ -297,15 +297,15 @@ def _far_off(rec: rr.RecordingStream, path: str, est, found: dict | None, ids: n
     _ring(rec, path, est, ids, found["far"], labels, FAR_OFF, 0.6, 0.2)
 
 
-def _unplaced(rec: rr.RecordingStream, path: str, est, found: dict | None, ids: np.ndarray) -> None:
+def _unplaced(rec: rr.RecordingStream, base: str, est, found: dict | None, ids: np.ndarray) -> None:
     """The landmarks of a map its data cannot place (:mod:`.placed`), ringed and labelled by id and
     their 95 % ellipse's reach over their range, and those its own bearings reject (``contradicted``,
     by the share that miss them), with no truth."""
     if found:
-        _ring(rec, path, est, ids, found["ids"],
+        _ring(rec, f"{base}/unplaced", est, ids, found["ids"],
               [f"id {i}: cannot place ({found['reach'][str(i)]:.1f}x)" for i in found["ids"]], UNPLACED, 0.5, 0.25)
         bad = found.get("contradicted") or []
-        _ring(rec, path.replace("/unplaced", "/contradicted"), est, ids, bad,
+        _ring(rec, f"{base}/contradicted", est, ids, bad,
               [f"id {i}: contradicted ({100 * found['missed'][str(i)]:.0f} %)" for i in bad], CONTRADICTED, 0.55, 0.3)
 
 
@@ -350,7 +350,7 @@ def record_run(rec: rr.RecordingStream, first: RunResult, zero: RunSummary) -> N
                 draw.ellipse_sets(rec, f"{base}/landmark_ellipses", TL, d.t[est.map_steps], est.map_mean,
                                   est.map_cov, rgb)
         _far_off(rec, f"{base}/far_off", est, getattr(zero, "survey", {}).get(name), d.landmark_ids)
-        _unplaced(rec, f"{base}/unplaced", est, getattr(zero, "unplaced", {}).get(name), d.landmark_ids)
+        _unplaced(rec, base, est, getattr(zero, "unplaced", {}).get(name), d.landmark_ids)
         rt, counts, starts, ends = _rays(first, pose, ray_len)
         if len(rt):
             draw.segment_sets(rec, f"{base}/rays", TL, rt, counts, starts, ends, (255, 255, 120), 0.03)

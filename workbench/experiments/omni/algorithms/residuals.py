@@ -33,7 +33,25 @@ def of_graph(graph: gtsam.NonlinearFactorGraph, result: gtsam.Values, kf, insert
     group = ["odometry"] * n_odo
     r2 = [2.0 * graph.at(k).error(result) for k in range(1, 1 + n_odo)]
     dof, used = [3] * n_odo, [True] * n_odo
-    # the bearings at once: each keyframe's pose and each landmark's point read once from the answer
+    e_of, lm_of, r2b = bearing_residuals(kf, result, inserted)
+    ok = np.array([(int(e), int(lm)) not in rejected for e, lm in zip(e_of, lm_of, strict=True)], bool)
+    group += ["bearing"] * len(r2b)
+    r2 += r2b.tolist()
+    dof += [1] * len(r2b)
+    used += ok.tolist()
+    kept_bearings = int(ok.sum())
+    traces = hat_traces(graph, result, groups, dims=dims)
+    n_odo = 3 * groups.count("odometry")
+    redundancy = {"odometry": n_odo - traces.get("odometry", n_odo),
+                  "bearing": kept_bearings - traces.get("bearing", kept_bearings)}
+    return Residuals(np.array(group, str), np.array(r2, float), np.array(dof, int), np.array(used, bool),
+                     redundancy, gate, landmark=np.concatenate([np.full(len(group) - len(lm_of), -1), lm_of]))
+
+
+def bearing_residuals(kf, result: gtsam.Values, inserted: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Every keyframe bearing of a landmark in the map at the answer ``result``, at once (each
+    keyframe's pose and each landmark's point read once): its keyframe, its landmark and its squared
+    whitened residual ``(wrap(z - h(x)) / sigma)^2``."""
     E = len(kf.bearings)
     have = [e for e in range(E) if len(kf.bearings[e][0]) and result.exists(X(e))]
     poses = np.full((E, 3), np.nan)
@@ -52,15 +70,4 @@ def of_graph(graph: gtsam.NonlinearFactorGraph, result: gtsam.Values, kf, insert
     e_of, lm_of, z, sigma = e_of[mapped], lm_of[mapped], z[mapped], sigma[mapped]
     p, q = poses[e_of], points[lm_of]
     predicted = np.arctan2(q[:, 1] - p[:, 1], q[:, 0] - p[:, 0]) - p[:, 2]
-    ok = np.array([(int(e), int(lm)) not in rejected for e, lm in zip(e_of, lm_of, strict=True)], bool)
-    group += ["bearing"] * len(z)
-    r2 += (wrap(z - predicted) / sigma).__pow__(2).tolist()
-    dof += [1] * len(z)
-    used += ok.tolist()
-    kept_bearings = int(ok.sum())
-    traces = hat_traces(graph, result, groups, dims=dims)
-    n_odo = 3 * groups.count("odometry")
-    redundancy = {"odometry": n_odo - traces.get("odometry", n_odo),
-                  "bearing": kept_bearings - traces.get("bearing", kept_bearings)}
-    return Residuals(np.array(group, str), np.array(r2, float), np.array(dof, int), np.array(used, bool),
-                     redundancy, gate, landmark=np.concatenate([np.full(len(group) - len(lm_of), -1), lm_of]))
+    return e_of, lm_of, (wrap(z - predicted) / sigma) ** 2

@@ -150,27 +150,14 @@ def _ghosts(data: OmniData, cfg: OmniConfig, rays: dict[int, list[tuple[int, flo
 
 def _contradicted(kf: Keyframes, marks: _Landmarks, result: gtsam.Values) -> set[int]:
     """The landmarks in the map most of whose own bearings miss them at ``result`` by over 3 of the
-    bearings' robust sigmas (:meth:`~workbench.estimation.consistency.Residuals.missed`, the reading
-    :func:`workbench.experiments.omni.placed.contradicted` reports): their place is not theirs."""
-    from workbench.estimation.angles import wrap
+    bearings' robust sigmas (:meth:`~workbench.estimation.consistency.Residuals.contradicted`, the
+    reading :func:`workbench.experiments.omni.placed.contradicted` reports): their place is not theirs."""
     from workbench.estimation.consistency import Residuals
 
-    lm_of, r2 = [], []
-    for e, (lms, bearings) in enumerate(kf.bearings):
-        keep = marks.inserted[lms] if len(lms) else np.zeros(0, bool)
-        if not keep.any():
-            continue
-        p = _pose(result.atPose2(X(e)))
-        q = np.array([result.atPoint2(L(int(lm))) for lm in lms[keep]])
-        predicted = np.arctan2(q[:, 1] - p[1], q[:, 0] - p[0]) - p[2]
-        r2.append((wrap(bearings[keep] - predicted) / kf.sigma(e)[keep]) ** 2)
-        lm_of.append(lms[keep])
-    if not r2:
-        return set()
-    n = sum(len(r) for r in r2)
-    res = Residuals(np.full(n, "bearing"), np.concatenate(r2), np.ones(n, int), np.ones(n, bool), {},
-                    landmark=np.concatenate(lm_of))
-    return {lm for lm, share in res.missed().items() if share > 0.5}
+    _, lm_of, r2 = residuals.bearing_residuals(kf, result, marks.inserted)
+    n = len(r2)
+    return set(Residuals(np.full(n, "bearing"), r2, np.ones(n, int), np.ones(n, bool), {},
+                         landmark=lm_of).contradicted())
 
 
 def _relocate(data: OmniData, cfg: OmniConfig, rays: dict[int, list[tuple[int, float]]], marks: _Landmarks,
