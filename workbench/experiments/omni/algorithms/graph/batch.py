@@ -21,6 +21,7 @@ from workbench.experiments.omni.algorithms.graph.landmarks import (
     _Landmarks,
     _residuals,
     consensus,
+    snooped,
 )
 from workbench.experiments.omni.algorithms.graph.starts import Start, _best_start, fit, named_starts
 from workbench.experiments.omni.config import OmniConfig
@@ -65,8 +66,9 @@ def batch(data: OmniData, cfg: OmniConfig, kf: Keyframes | None = None,
         again = _regate(data, cfg, kf, result, covs, lm_cov, marks.inserted)
         rays = _rays(kf, marks)
         again, moved = _relocate(data, cfg, rays, marks, again, result, _contradicted(kf, marks, result))
+        again, snooped = _snoop(data, rays, again, result)
         again, ghosts = _ghosts(data, cfg, rays, again)
-        if again == rejected and not moved and not ghosts:
+        if again == rejected and not moved and not snooped and not ghosts:
             break
         rejected = again
         result = _drop_unseen(kf, marks, rejected, result)   # the ghosts too: every bearing of theirs left out
@@ -224,6 +226,26 @@ def _relocate(data: OmniData, cfg: OmniConfig, rays: dict[int, list[tuple[int, f
         for (e, _), ok in zip(held, agree, strict=True):
             (out.discard if ok else out.add)((e, lm))
         moved.append(lm)
+    return out, moved
+
+
+def _snoop(data: OmniData, rays: dict[int, list[tuple[int, float]]], rejected: set[tuple[int, int]],
+           result: gtsam.Values) -> tuple[set[tuple[int, int]], list[int]]:
+    """Each landmark's one bearing its others reject (:func:`.landmarks.snooped`, from the
+    smoothed poses) left out, the landmark moved to where the others put it (``result`` updated
+    in place; the next solve starts from it)."""
+    out, moved = set(rejected), []
+    for lm, held in rays.items():
+        kept = [(e, b) for e, b in held if (e, lm) not in out]
+        if len(kept) <= AGREEING:
+            continue
+        poses = np.array([_pose(result.atPose2(X(e))) for e, _ in kept])
+        found = snooped(np.asarray(result.atPoint2(L(lm)), float), poses, np.array([b for _, b in kept]),
+                        data.sigma_bearing)
+        if found is not None:
+            out.add((kept[found[0]][0], lm))
+            result.update(L(lm), gtsam.Point2(*found[1]))
+            moved.append(lm)
     return out, moved
 
 
