@@ -11,7 +11,10 @@ The truth of a resample:
   geometry each bearing sees (range, side, parallax) is the answer's where the landmark is seen
   most;
 * the schedule: every bearing of a mapped landmark at its step, as the data had it (a landmark the
-  smoother left out is left out).
+  smoother left out is left out);
+* the outliers: each bearing the reference smoother left out at its gate (a misread id, a heavy
+  tail) carries its residual at the smoother's answer, as the data had it (:func:`_replayed`), not
+  a Gaussian draw: a log with misreads gives resamples with the same misreads, where they were.
 
 The noise: the odometry's (each step's own covariance, or the motion's sigmas) and the bearings'
 (each one's sigma) as the estimators were told them (:func:`.run.assumed`), times the factor the
@@ -163,6 +166,27 @@ def _path(data: OmniData, told: OmniData, k: float, rng: np.random.Generator
     return truth, noisy
 
 
+def _replayed(data: OmniData, est: Any, ref: np.ndarray, at: dict[int, int], final: np.ndarray,
+              idx: np.ndarray) -> np.ndarray:
+    """For the bearings ``idx`` (the dataset's) the reference smoother left out at its gate, each
+    one's residual at the smoother's answer (rad; NaN for the rest, and where its step has no
+    smoothed pose): the outliers' part of the resample's noise, replayed where the data had it (the
+    residual bootstrap, Efron and Tibshirani 1993, sec. 9.5, for what the Gaussian does not hold)."""
+    out = np.full(len(idx), np.nan)
+    gated = getattr(est, "gated_bearings", None)
+    if gated is None or not len(gated):
+        return out
+    for j in np.flatnonzero(np.isin(idx, np.asarray(gated, int))):
+        i = int(idx[j])
+        s = int(data.meas_step[i])
+        if s not in at or not np.isfinite(ref[at[s]]).all():
+            continue
+        p = ref[at[s]]
+        d = final[int(data.meas_lm[i])] - p[:2]
+        out[j] = wrap(data.meas_bearing[i] - (math.atan2(d[1], d[0]) - p[2]))
+    return out
+
+
 def resample(result: Any, cfg: Any, rng: np.random.Generator) -> OmniData:
     """One dataset simulated from the run's answer (the module's text)."""
     from workbench.experiments.omni.run import assumed
@@ -202,7 +226,9 @@ def resample(result: Any, cfg: Any, rng: np.random.Generator) -> OmniData:
     p, q = truth[ms], landmarks[ml]
     clean = np.arctan2(q[:, 1] - p[:, 1], q[:, 0] - p[:, 0]) - p[:, 2]
     sigma = told.bearing_sigma(np.flatnonzero(keep)) * k["bearings"]
-    bearings = wrap(clean + sigma * rng.normal(size=len(clean)))
+    noise = sigma * rng.normal(size=len(clean))
+    replayed = _replayed(data, est, ref, at, final, np.flatnonzero(keep))
+    bearings = wrap(clean + np.where(np.isfinite(replayed), replayed, noise))
     return dataclasses.replace(
         data, controls=noisy, truth=truth, meas_step=ms, meas_lm=ml, meas_bearing=bearings,
         meas_sigma=None if data.meas_sigma is None else np.asarray(data.meas_sigma, float)[keep],
