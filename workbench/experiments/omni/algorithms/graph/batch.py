@@ -66,9 +66,9 @@ def batch(data: OmniData, cfg: OmniConfig, kf: Keyframes | None = None,
         again = _regate(data, cfg, kf, result, covs, lm_cov, marks.inserted)
         rays = _rays(kf, marks)
         again, moved = _relocate(data, cfg, rays, marks, again, result, _contradicted(kf, marks, result))
-        again, snooped = _snoop(data, rays, again, result)
+        again, cut = _snoop(data, rays, again, result)
         again, ghosts = _ghosts(data, cfg, rays, again)
-        if again == rejected and not moved and not snooped and not ghosts:
+        if again == rejected and not moved and not cut and not ghosts:
             break
         rejected = again
         result = _drop_unseen(kf, marks, rejected, result)   # the ghosts too: every bearing of theirs left out
