@@ -178,8 +178,10 @@ def _relocate(data: OmniData, cfg: OmniConfig, rays: dict[int, list[tuple[int, f
     were misread ids (another landmark's bearings under its id) it sits where they meet, and the
     gate then leaves out its own bearings, each one on its own too far from that place (a
     synthetic log with 10 % of the ids misread: landmark 32, 49 true bearings of 55, 62 m off).
-    Here every landmark with a bearing that misses it by more than the gate's tolerance is placed
-    again by consensus over all its bearings, from the smoothed poses, and moves there (``result``
+    Here every landmark whose bearings that miss it by more than the gate's tolerance could, capped,
+    gain the chi-square below (two of them or more: where least squares hold a landmark, capping
+    the bearings it misses gains at most the tolerance's square each) is placed again by consensus
+    over all its bearings, from the smoothed poses, and moves there (``result``
     updated in place; those bearings taken in and the rest left out; the next solve starts from
     it) where
 
@@ -213,8 +215,8 @@ def _relocate(data: OmniData, cfg: OmniConfig, rays: dict[int, list[tuple[int, f
         bearings = np.array([b for _, b in held])
         here = _residuals(np.asarray(result.atPoint2(L(lm)), float), poses, bearings)
         outvoted = 2 * left > len(held) or lm in suspect
-        if not outvoted and np.all(np.abs(here) < tolerance):
-            continue
+        if not outvoted and np.sum(np.abs(here) >= tolerance) * tolerance ** 2 <= gain_needed:
+            continue  # where least squares hold it, capping the bearings it misses gains at most this
         found = consensus(poses, bearings, tolerance, min(marks.min_parallax, 2.0 * tolerance))
         if found is None:
             continue
