@@ -65,8 +65,9 @@ def batch(data: OmniData, cfg: OmniConfig, kf: Keyframes | None = None,
     for _ in range(REGATE_ROUNDS if cfg.nis_gate > 0.0 or outlier_rate(cfg) > 0.0 else 0):
         again = _regate(data, cfg, kf, result, covs, lm_cov, marks.inserted)
         rays = _rays(kf, marks)
-        again, moved = _relocate(data, cfg, rays, marks, again, result, _contradicted(kf, marks, result))
-        again, cut = _snoop(data, rays, again, result)
+        smoothed = np.array([_pose(result.atPose2(X(e))) for e in range(E)])  # held through the round
+        again, moved = _relocate(data, cfg, rays, marks, again, result, smoothed, _contradicted(kf, marks, result))
+        again, cut = _snoop(data, rays, again, result, smoothed)
         again, ghosts = _ghosts(data, cfg, rays, again)
         if again == rejected and not moved and not cut and not ghosts:
             break
@@ -170,8 +171,8 @@ def _contradicted(kf: Keyframes, marks: _Landmarks, result: gtsam.Values) -> set
 
 
 def _relocate(data: OmniData, cfg: OmniConfig, rays: dict[int, list[tuple[int, float]]], marks: _Landmarks,
-              rejected: set[tuple[int, int]], result: gtsam.Values, suspect: set[int] = frozenset()
-              ) -> tuple[set[tuple[int, int]], list[int]]:
+              rejected: set[tuple[int, int]], result: gtsam.Values, smoothed: np.ndarray,
+              suspect: set[int] = frozenset()) -> tuple[set[tuple[int, int]], list[int]]:
     """Landmarks placed where their own bearings disagree, moved to where they agree.
 
     A landmark enters from the first rays that agree (:func:`.landmarks.consensus`); where those
@@ -211,7 +212,7 @@ def _relocate(data: OmniData, cfg: OmniConfig, rays: dict[int, list[tuple[int, f
         if len(held) < AGREEING:
             continue
         left = sum((e, lm) in rejected for e, _ in held)
-        poses = np.array([_pose(result.atPose2(X(e))) for e, _ in held])
+        poses = smoothed[[e for e, _ in held]]
         bearings = np.array([b for _, b in held])
         here = _residuals(np.asarray(result.atPoint2(L(lm)), float), poses, bearings)
         outvoted = 2 * left > len(held) or lm in suspect
@@ -232,7 +233,7 @@ def _relocate(data: OmniData, cfg: OmniConfig, rays: dict[int, list[tuple[int, f
 
 
 def _snoop(data: OmniData, rays: dict[int, list[tuple[int, float]]], rejected: set[tuple[int, int]],
-           result: gtsam.Values) -> tuple[set[tuple[int, int]], list[int]]:
+           result: gtsam.Values, smoothed: np.ndarray) -> tuple[set[tuple[int, int]], list[int]]:
     """Each landmark's one bearing its others reject (:func:`.landmarks.snooped`, from the
     smoothed poses) left out, the landmark moved to where the others put it (``result`` updated
     in place; the next solve starts from it)."""
@@ -241,7 +242,7 @@ def _snoop(data: OmniData, rays: dict[int, list[tuple[int, float]]], rejected: s
         kept = [(e, b) for e, b in held if (e, lm) not in out]
         if len(kept) <= AGREEING:
             continue
-        poses = np.array([_pose(result.atPose2(X(e))) for e, _ in kept])
+        poses = smoothed[[e for e, _ in kept]]
         found = snooped(np.asarray(result.atPoint2(L(lm)), float), poses, np.array([b for _, b in kept]),
                         data.sigma_bearing)
         if found is not None:
