@@ -8,7 +8,10 @@ process, one after the other.
 
 The factors the plain loop replays are captured from the workbench's own run (the graph and
 values it hands to ``ISAM2.update`` at each keyframe), so both solve the same problem. Target:
-the workbench within 1.5x of the plain loop per update.
+the workbench within 1.5x of the plain loop per update: its keyframe steps alone (``updates
+alone``: the gate, the bookkeeping, the update, the newest pose and its marginal, the run-away
+passes), timed inside the same run as the whole estimator, which adds what it does once at the end
+(three full solves, the map's marginals, the residuals for the diagnosis).
 
 Logs (``--log``):
 
@@ -92,6 +95,30 @@ def plain(updates, cfg, defaults: bool = False, marginal: bool = False) -> tuple
     return time.perf_counter() - t0, newest
 
 
+def updates_alone(data, cfg, kf):
+    """The workbench's ``isam2`` with the seconds of its updates alone (its keyframe steps: the
+    gate, the landmarks' bookkeeping, ``ISAM2.update``, the newest pose and its marginal, the
+    run-away passes), without what it does once at the end (three full solves, the map's
+    marginals, the residuals): the per-update cost the plain loop's is compared with."""
+    spent = [0.0]
+    original = graph._Incremental.step
+
+    def step(self, e):
+        t0 = time.perf_counter()
+        try:
+            return original(self, e)
+        finally:
+            spent[0] += time.perf_counter() - t0
+
+    graph._Incremental.step = step
+    try:
+        est = graph.isam2(data, cfg, kf)
+    finally:
+        graph._Incremental.step = original
+    est.updates_seconds = spent[0]
+    return est
+
+
 def timed(fn):
     """(seconds, what ``fn`` returns), or (seconds, the one-line error) where GTSAM throws."""
     t0 = time.perf_counter()
@@ -146,17 +173,23 @@ def table(data, cfg, repeat: int) -> dict[str, float]:
     runs = {
         "plain GTSAM iSAM2 loop": lambda: plain(updates, cfg),
         "plain loop + newest marginal": lambda: plain(updates, cfg, marginal=True),
-        "workbench isam2": lambda: graph.isam2(data, cfg, kf),
+        "workbench isam2": lambda: updates_alone(data, cfg, kf),
         "workbench fixed-lag (5 s)": lambda: fixed_lag.run(data, cfg, kf),
         "gtsam-batch (from isam2)": lambda: graph.batch(data, cfg, kf, [start]),
         "ekf": lambda: ekf.run(data, cfg, "clone", "ekf"),
     }
+    alone = "workbench isam2, updates alone"
     times: dict[str, list[float]] = {k: [] for k in runs}
+    times[alone] = []
     out: dict[str, object] = {}
     for _ in range(repeat):  # interleaved: a shared machine's load comes and goes
         for name, fn in runs.items():
             t, out[name] = timed(fn)
             times[name].append(t)
+            if name == "workbench isam2" and not isinstance(out[name], str):
+                times[alone].append(out[name].updates_seconds)
+                out[alone] = out[name]
+    times = {k: v for k, v in times.items() if v}
     best = {k: min(v) for k, v in times.items()}
     t_plain = best["plain GTSAM iSAM2 loop"]
     steps = np.array([e for _, _, e in updates])
@@ -173,8 +206,10 @@ def table(data, cfg, repeat: int) -> dict[str, float]:
         per = f"{t / t_plain:5.2f}x" if "isam2" in name or "fixed" in name or "plain" in name else "     "
         print(f"  {name:28s} {t:7.2f} s  {1e3 * t / E:6.2f} ms an update  {per} the plain loop   "
               f"RMSE newest {newest:6.3f} m, whole run {smoothed:6.3f} m")
+    met = {k: "met" if best.get(k, math.inf) <= 1.5 * t_plain else "missed" for k in ("workbench isam2", alone)}
     print(f"  workbench isam2: {est.failures} failures, its LM passes only at run-aways; target within 1.5x of the "
-          f"plain loop: {'met' if best['workbench isam2'] <= 1.5 * t_plain else 'missed'}")
+          f"plain loop per update: {met[alone]} (the whole estimator, its end-of-log solves, map and residuals "
+          f"too: {met['workbench isam2']})")
     return best
 
 

@@ -349,7 +349,6 @@ class _Incremental:
         self.passes += 1
         self.start = result
         self.chain = result.atPose2(X(e))
-        self._marginals(result, e)
         for k in range(e + 1):
             self.known[k] = _pose(result.atPose2(X(k)))
         for lm in self.points:
@@ -357,6 +356,18 @@ class _Incremental:
         self.current = self.chain
         if self.isam is not None:
             self.isam, self.current = isam, current
+        following = self.follow and self.isam is not None and math.isfinite(self.gate)
+        cov = _marginal(self.isam, X(e), 3) if following else None
+        if cov is not None and np.isfinite(cov).all():
+            # iSAM2, rebuilt at LM's answer, holds the marginals ``Marginals`` would give there (its
+            # Bayes tree is linearised at that answer): the newest pose's read from it now, the
+            # landmarks' again when the gate next asks (a whole-graph ``Marginals`` at every pass
+            # cost 0.02 s of 1.5 s on the 7,000-pose drive)
+            self.newest_cov = cov
+            self.chain_cov = to_world(cov[None], np.array([self.chain.theta()]))[0]
+            self.point_read.clear()
+        else:
+            self._marginals(result, e)
         return True
 
     FINAL_SOLVES = 3
