@@ -81,29 +81,31 @@ def test_isam2_following_itself_takes_a_landmark_named_twice_at_one_keyframe(tmp
 
 
 @pytest.mark.skipif(not (DATA / "mrclam6").is_dir(), reason="the real MRCLAM data are not here")
-def test_isam2_s_passes_at_run_aways_cost_at_most_a_budget_of_whole_solves():
-    """MRCLAM 6 robot 1 told a bearing sigma of 0.58 deg (what the batch's variance components once
-    asked of --tune-noise): iSAM2 runs away again as soon as each pass rebuilds it, and its 205 passes
-    took 11 s against 1 s. The passes' keyframes, summed, stay within PASS_BUDGET graphs of the log's
-    length so far; iSAM2 is given up and says so (a failure), and the batch, which tries its other
-    starts when iSAM2's answer fails its test, lands where it lands at the scenario's noise."""
+def test_isam2_s_passes_at_run_aways_cost_at_most_a_budget_of_whole_solves(monkeypatch):
+    """An iSAM2 that runs away again as soon as each pass rebuilds it (MRCLAM 6 robot 1 told a
+    bearing sigma of 0.58 deg once did: 205 passes, 11 s against 1 s; since landmarks whose ids show
+    misreads enter only where their rays check each other it no longer does, 0.42 m). Made here by
+    calling every update with a correction over 1 mm or 0.01 deg a run-away: the passes' keyframes,
+    summed, stay within PASS_BUDGET graphs of the log's length so far; iSAM2 is given up and says
+    so (a failure), and the batch, which tries its other starts when iSAM2's answer fails its test,
+    lands where it lands at the scenario's noise."""
     from workbench.experiments.omni.algorithms.graph import incremental
 
-    cfg = api.configure("omni", "mrclam", data=str(DATA / "mrclam6"), robot=1, assume_sigma_bearing_deg=0.58)
+    monkeypatch.setattr(incremental, "JUMP_POSITION", 1e-3)
+    monkeypatch.setattr(incremental, "JUMP_HEADING", math.radians(0.01))
+    cfg = api.configure("omni", "mrclam", data=str(DATA / "mrclam6"), robot=1)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        exp = api.get("omni")
-        data = exp.assumed(exp.dataset(cfg, 0), cfg)
+        data = api.get("omni").dataset(cfg, 0)
     kf = graph.keyframes(data, cfg)
     inc = incremental._Incremental(data, cfg, kf)
     for e in range(len(kf.steps)):
         inc.step(e)
         assert inc.pass_work <= incremental.PASS_BUDGET * (e + 1)
-    assert inc.gave_up is not None and inc.isam is None and inc.failures >= 1
+    assert inc.gave_up is not None and inc.isam is None and inc.failures >= 1 and inc.passes > 1
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        run = api.run("omni", "mrclam", data=str(DATA / "mrclam6"), robot=1, assume_sigma_bearing_deg=0.58,
-                      estimators=["isam2", "gtsam-batch"])
+        run = api.run("omni", "mrclam", data=str(DATA / "mrclam6"), robot=1, estimators=["isam2", "gtsam-batch"])
     got = run.metrics["estimators"]
     assert got["isam2"]["failures"] >= 1 and got["isam2"]["seconds"] < 4.0
     # the diagnosis names the give-up first (its time, the keyframe's), and never calls it consistent

@@ -28,7 +28,7 @@ def test_a_log_without_misreads_is_left_as_it_was(tmp_path):
 def test_chance_agreement_by_hand():
     """Rays pointing anywhere: of 5, the 10 pairs each meet, and one of the other 3 agrees with
     probability 1 - (1 - p)^3; of 4 all agreeing, 6 pairs and both others, p^2; 3 of 3, 3p."""
-    from workbench.experiments.omni.algorithms.graph.batch import chance_agreement
+    from workbench.experiments.omni.algorithms.graph.landmarks import chance_agreement
 
     p = 0.0143
     assert abs(chance_agreement(5, 3, p) - 10 * (1 - (1 - p) ** 3)) < 1e-12
@@ -50,17 +50,18 @@ def test_ids_never_seen_are_not_mapped_from_misread_rays(tmp_path):
     assert not mapped & never, sorted(mapped & never)
 
 
-def test_a_landmark_least_squares_put_where_a_misread_meets_its_rays_moves_back(tmp_path):
-    """10 % of the ids misread (seed 0): landmark 87's five true bearings, their rays 14 deg apart,
-    and one misread from 78 m away; least squares put it 44 m off, where the misread meets four of
-    the five (the fifth misses by 4.6 sigmas, none gated). The truncated squared error (MSAC)
-    prefers where the five agree, and the map is within 2x its bound (measured 0.68 against 0.99;
-    5.69 before)."""
+def test_a_landmark_whose_range_a_misread_alone_gives_is_not_placed_there(tmp_path):
+    """10 % of the ids misread (seed 0): landmark 87's true bearings come from five keyframes in a
+    row, nearly parallel; a misread from 78 m away crosses them and alone gives the range (leverage
+    0.97-1). Least squares put it 44 m off there; MSAC's consensus then moved it back to 2.8 m. Now
+    it does not enter at all (:meth:`_Landmarks.trusted`): its id shows a misread and its range
+    would rest on one unchecked ray, and no later sighting checks it. Every landmark mapped is within
+    5 m, and the map within 2x its bound (measured 0.55 against 0.97; 0.68 before, 5.69 before MSAC)."""
     faults.write(tmp_path, faults.Faults(misread=0.10, seed=0), force=True)
     e = api.run("omni", "log", data=str(tmp_path), estimators="gtsam-batch").metrics["estimators"]["gtsam-batch"]
     assert e["aligned_map_rmse"] < 2.0 * e["map_bound"], (e["aligned_map_rmse"], e["map_bound"])
     errors = e["survey"]["errors"]
-    assert float(errors["87"]) < 5.0 and max(map(float, errors.values())) < 5.0, errors
+    assert "87" not in errors and len(errors) > 50 and max(map(float, errors.values())) < 5.0, errors
 
 
 def test_truncated_cost_by_hand():

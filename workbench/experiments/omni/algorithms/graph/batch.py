@@ -17,10 +17,13 @@ from workbench.experiments.omni.algorithms.graph.gating import _bearing_test, ga
 from workbench.experiments.omni.algorithms.graph.keyframes import Keyframes, _lm_params, _pose, keyframes, to_world
 from workbench.experiments.omni.algorithms.graph.landmarks import (
     AGREEING,
+    CHANCE,
     _batch_graph,
     _Landmarks,
     _residuals,
+    chance_agreement,
     consensus,
+    ray_chance,
     snooped,
 )
 from workbench.experiments.omni.algorithms.graph.starts import Start, _best_start, fit, named_starts
@@ -105,24 +108,11 @@ def _drop_unseen(kf: Keyframes, marks: _Landmarks, rejected: set[tuple[int, int]
 
 REGATE_ROUNDS = 3
 """How many times the batch re-gates every bearing against its own smoothed answer."""
-CHANCE = 0.01
-"""A landmark whose agreeing rays rays pointing anywhere would match this often is not taken."""
 
 
 def _tolerance(data: OmniData, cfg: OmniConfig) -> float:
     """How far (rad) a ray may be from a landmark's place and agree with it: the gate's."""
     return math.sqrt(max(float(gate_of(cfg)(data.sigma_bearing ** 2)), 0.0)) * data.sigma_bearing
-
-
-def chance_agreement(n: int, k: int, p: float) -> float:
-    """How often ``k`` of ``n`` rays that point anywhere would agree on one place (a bound): each
-    of the ``n (n - 1) / 2`` pairs meets somewhere, and ``k - 2`` of the other ``n - 2`` pass within
-    the tolerance of it, each with probability ``p`` (the tolerance's share of the field of view)."""
-    from scipy.stats import binom
-
-    if n < 2 or k < 2:
-        return 1.0
-    return float(min(1.0, n * (n - 1) / 2 * binom.sf(k - 3, n - 2, p)))
 
 
 def _rays(kf: Keyframes, marks: _Landmarks) -> dict[int, list[tuple[int, float]]]:
@@ -148,7 +138,7 @@ def _ghosts(data: OmniData, cfg: OmniConfig, rays: dict[int, list[tuple[int, flo
     rays that agree with it are more than chance: :func:`chance_agreement` under :data:`CHANCE`,
     the tolerance's share of the field of view the chance that one random ray agrees. A landmark
     whose every bearing agrees is not judged: without a misread there are no random rays."""
-    p = min(1.0, 2.0 * _tolerance(data, cfg) / min(float(data.fov), 2.0 * math.pi))
+    p = ray_chance(_tolerance(data, cfg), data.fov)
     out, gone = set(rejected), []
     for lm, held in rays.items():
         left = sum((e, lm) in rejected for e, _ in held)
