@@ -31,6 +31,22 @@ def test_a_landmark_whose_ellipse_reaches_past_its_range_is_not_placed():
     assert placed.unplaced(data, SlamEstimate("x", np.array([0]), np.zeros((1, 3)))) is None
 
 
+def test_a_landmark_seen_five_times_that_the_map_does_not_hold_is_named():
+    """By hand: ids 7, 8 and 9; 8 seen five times and 9 four, neither in the map: 8 is named
+    unmapped (seen MIN_SEEN = 5 times), 9 is not (too few bearings to say anything)."""
+    data = types.SimpleNamespace(meas_step=np.zeros(11, int), meas_lm=np.array([0, 0] + [1] * 5 + [2] * 4),
+                                 landmark_ids=np.array([7, 8, 9]))
+    mean = np.array([[[10.0, 0.0], [np.nan, np.nan], [np.nan, np.nan]]])
+    cov = np.array([[np.eye(2), np.full((2, 2), np.nan), np.full((2, 2), np.nan)]])
+    est = SlamEstimate("x", np.array([0]), np.zeros((1, 3)), None, np.array([0]), mean, cov)
+    found = placed.unplaced(data, est)
+    assert found["unmapped"] == [8] and found["ids"] == []
+    assert placed.describe(found) == ("1 id seen 5+ times not mapped (8): their bearings place them nowhere the "
+                                      "estimator trusts")
+    many = placed.describe({"ids": [], "reach": {}, "unmapped": list(range(10))})
+    assert many.startswith("10 ids seen 5+ times not mapped (0, 1, 2, 3, 4, 5, 6, 7, ...)")
+
+
 @pytest.mark.skipif(not (DATA / "mrclam6").is_dir(), reason="the real MRCLAM data are not here")
 def test_on_mrclam_the_landmarks_the_ekf_cannot_place_are_its_worst(tmp_path):
     """MRCLAM 6 robot 1, no truth read to flag them: the EKF's landmarks it cannot place are the ones

@@ -31,12 +31,15 @@ from workbench.experiments.omni.scenario import OmniData
 
 REACH = math.sqrt(-2.0 * math.log(0.05))   # the 95 % ellipse's semi-axes in sigmas (2-d: 2.448)
 MISS, MIN_SEEN = MISS_SIGMAS, MISS_LEAST   # (a bearing this many sigmas off misses; fewer bearings: no median)
+UNMAPPED_SHOWN = 8                          # ids named in the report's line (all in the metrics)
 
 
 def unplaced(data: OmniData, est: SlamEstimate) -> dict | None:
     """The landmarks of ``est``'s final map the data cannot place (the module's text): ``ids``, and
     for each the ratio of its ellipse's reach (semi-major axis, 95 %) to its range (``reach``, by id
-    as a string: over 1 is not placed); None where the map has no covariances."""
+    as a string: over 1 is not placed); ``unmapped``: the ids seen at least :data:`MIN_SEEN` times
+    that the map does not hold at all (an estimator that waits for rays that check each other, or
+    leaves a ghost out, says so rather than place them); None where the map has no covariances."""
     cov = est.final_map_cov
     if cov is None or est.pose is None or not len(est.map_mean):
         return None
@@ -46,8 +49,11 @@ def unplaced(data: OmniData, est: SlamEstimate) -> dict | None:
     seen_from = np.asarray(est.pose, float)[at, :2]
     lm = np.asarray(data.meas_lm, int)
     rows = np.isfinite(seen_from).all(axis=1) & np.isfinite(mean[lm]).all(axis=1)
+    seen = np.bincount(lm, minlength=len(mean))
+    unmapped = {"unmapped": [int(data.landmark_ids[i]) for i in np.flatnonzero((seen >= MIN_SEEN)
+                                                                              & ~np.isfinite(mean).all(axis=1))]}
     if not rows.any():
-        return {"ids": [], "reach": {}, **_rejected(est, data.landmark_ids)}
+        return {"ids": [], "reach": {}, **_rejected(est, data.landmark_ids), **unmapped}
     dist = np.hypot(*(seen_from[rows] - mean[lm[rows]]).T)
     order = np.lexsort((dist, lm[rows]))           # each landmark's ranges together, sorted
     lms, first, count = np.unique(lm[rows][order], return_index=True, return_counts=True)
@@ -59,7 +65,7 @@ def unplaced(data: OmniData, est: SlamEstimate) -> dict | None:
     reach = REACH * np.sqrt(np.clip(major, 0.0, None)) / rng[ok]
     ratio = {str(int(data.landmark_ids[i])): float(r) for i, r in zip(lms[ok], reach, strict=True)}
     return {"ids": [int(k) for k, r in ratio.items() if r > 1.0], "reach": ratio,
-            **_rejected(est, data.landmark_ids)}
+            **_rejected(est, data.landmark_ids), **unmapped}
 
 
 def _rejected(est: SlamEstimate, ids: np.ndarray) -> dict:
@@ -96,4 +102,9 @@ def describe(found: dict | None) -> str:
         one = len(bad) == 1
         out.append(f"{'id' if one else 'ids'} {', '.join(map(str, bad))} contradicted by {'its' if one else 'their'} "
                    f"own bearings ({shares} over {MISS:g} sigma off): misread ids or a wrong basin")
+    gone = found.get("unmapped") or []
+    if gone:
+        shown = ", ".join(map(str, gone[:UNMAPPED_SHOWN])) + (", ..." if len(gone) > UNMAPPED_SHOWN else "")
+        out.append(f"{len(gone)} {'id' if len(gone) == 1 else 'ids'} seen {MIN_SEEN}+ times not mapped ({shown}): "
+                   "their bearings place them nowhere the estimator trusts")
     return "; ".join(out)
