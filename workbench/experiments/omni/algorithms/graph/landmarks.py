@@ -48,7 +48,7 @@ class _Landmarks:
     def __init__(self, n: int, sigma: float, min_parallax: float, huber: float = 0.0,
                  baseline: Callable[[int, int], float] | None = None, fov: float = 2.0 * math.pi):
         self.baseline = baseline  # (keyframe, keyframe) -> the least distance between them that is not noise
-        self.fov = fov  # rad: the field of view (:meth:`chance`)
+        self.fov = fov  # rad: the field of view (:meth:`trusted`)
         self.obs: list[list[tuple[int, float]]] = [[] for _ in range(n)]
         self.inserted = np.zeros(n, bool)
         self.outliers: list[tuple[int, int]] = []
@@ -107,7 +107,8 @@ class _Landmarks:
         agreeing ray is checked by the others (:func:`controlled`) and (ii) the agreeing rays are
         more than chance: :func:`chance_agreement` under :data:`CHANCE`, with a ray pointing anywhere
         in the field of view passing within ``tolerance`` of a place with probability
-        ``2 tolerance / fov`` (the batch's ghost rule, applied at entry). Otherwise it waits for more
+        ``2 tolerance / fov`` (the batch's ghost rule, applied at entry; three rays of three agree by
+        chance ``3 p``, so a landmark held on three waits for a fourth). Otherwise it waits for more
         rays: the next sightings decide.
 
         Why: an id whose held rays include misreads (another landmark's bearings) gets a place
@@ -216,12 +217,18 @@ def controlled(point: np.ndarray, poses: np.ndarray) -> bool:
     2 among all rays; three rays spread over the parallax have about 2/3 each, a ray from the side
     of two nearly parallel ones has 1: the place's range is its alone, and its residual is 0
     whatever it is)."""
+    lever = _leverage(point, poses)
+    return lever is not None and bool(np.all(lever <= UNCONTROLLED))
+
+
+def _leverage(point: np.ndarray, poses: np.ndarray) -> np.ndarray | None:
+    """Each bearing's leverage in a landmark's place, ``J_i (J' J)^-1 J_i'`` (the hat matrix's
+    diagonal, the bearings' sigmas equal); None where ``J' J`` is singular."""
     J, _ = _point_jacobian(point, poses)
     try:
-        lever = np.einsum("ij,jk,ik->i", J, np.linalg.inv(J.T @ J), J)
+        return np.einsum("ij,jk,ik->i", J, np.linalg.inv(J.T @ J), J)
     except np.linalg.LinAlgError:
-        return False
-    return bool(np.all(lever <= UNCONTROLLED))
+        return None
 
 
 def _residuals(point: np.ndarray, poses: np.ndarray, bearings: np.ndarray) -> np.ndarray:
@@ -253,10 +260,8 @@ def snooped(point: np.ndarray, poses: np.ndarray, bearings: np.ndarray, sigma: f
     k = len(bearings)
     if k <= AGREEING:
         return None
-    J, _ = _point_jacobian(point, poses)
-    try:
-        lever = np.einsum("ij,jk,ik->i", J, np.linalg.inv(J.T @ J), J)
-    except np.linalg.LinAlgError:
+    lever = _leverage(point, poses)
+    if lever is None:
         return None
     limit = chi2_quantile(1.0 - alpha / k, 1)
     worst: tuple[float, int, np.ndarray] | None = None
