@@ -108,3 +108,36 @@ def test_a_landmark_resting_on_one_misread_goes_back_to_its_own_rays(tmp_path):
     e = api.run("omni", "log", data=str(tmp_path), estimators="gtsam-batch").metrics["estimators"]["gtsam-batch"]
     assert e["aligned_map_rmse"] < 2.0 * e["map_bound"], (e["aligned_map_rmse"], e["map_bound"])
     assert max(map(float, e["survey"]["errors"].values())) < 10.0
+
+
+def test_an_entry_waits_while_one_ray_alone_gives_its_place_by_hand():
+    """By hand (:meth:`_Landmarks.trusted`): a landmark at (10, 0). Two true rays a keyframe apart,
+    from (0, 0) and (0.2, 0), nearly parallel, and one from the side, from (10, -10) looking up:
+    that one alone gives the range. Its leverage (J_i (J'J)^-1 J_i') is 0.9998 (uncontrolled), and
+    with a fourth, disagreeing ray among those held (the id shows a misread) the entry waits. Three
+    rays 120 deg apart around it, 10 m off, are each checked by the others (leverages 2/3 each, any
+    rays' add up to 2): that entry is taken where the agreement is beyond chance (3 of 4 agree: with
+    a tolerance of 1 deg in a field of 360 deg, p = 1/180, 6 x 2p = 0.067 > 0.01, it waits; 6 of 7
+    agree: 21 x 5p^4 = 1e-7, taken). Where every held ray agrees and more than three are held,
+    nothing is judged."""
+    from workbench.experiments.omni.algorithms.graph import landmarks
+
+    point = np.array([10.0, 0.0])
+    side = np.array([[0.0, 0.0, 0.0], [0.2, 0.0, 0.0], [10.0, -10.0, np.pi / 2]])
+    lever = landmarks._leverage(point, side)
+    assert lever[2] > 0.999 and not landmarks.controlled(point, side)
+    assert abs(lever.sum() - 2.0) < 1e-9
+    around = np.array([[10.0 - 10 * np.cos(a), -10 * np.sin(a), a] for a in np.radians([0.0, 120.0, 240.0])])
+    assert np.allclose(landmarks._leverage(point, around), 2 / 3) and landmarks.controlled(point, around)
+    marks = landmarks._Landmarks(1, 0.01, np.radians(15.0), fov=2 * np.pi)
+    tol = np.radians(1.0)
+    four = np.vstack([side, [[5.0, 5.0, 0.0]]])
+    assert not marks.trusted(point, four, np.array([True, True, True, False]), tol)
+    spread = np.vstack([around, [[5.0, 5.0, 0.0]]])
+    assert abs(landmarks.ray_chance(tol, 2 * np.pi) - 1 / 180) < 1e-12
+    assert not marks.trusted(point, spread, np.array([True, True, True, False]), tol)   # 0.067: chance
+    seven = np.vstack([around, around[:1] + [0, 1, 0], around[1:2] + [0, 1, 0], around[2:] + [0, 1, 0],
+                       [[5.0, 5.0, 0.0]]])
+    assert landmarks.chance_agreement(7, 6, 1 / 180) < 1e-6
+    assert marks.trusted(point, seven, np.array([True] * 6 + [False]), tol)
+    assert marks.trusted(point, np.vstack([side, side]), np.ones(6, bool), tol)   # uncontrolled, but not judged
