@@ -203,6 +203,8 @@ def sweep(experiment: str, scenario: str | None = None, grid: Mapping[str, tuple
         tasks = plan(experiment, scenario, grid, fixed, runs, seed, estimators, size, preset)
         folder = prepare(out, _manifest(experiment, scenario, grid, fixed, runs, seed, tasks[0].estimators, size,
                                         preset), resume, force)
+        for stale in (folder / TASKS).glob(".*.tmp"):   # a write a SIGKILL cut short: its task is redone
+            stale.unlink(missing_ok=True)
         done = {p.name for p in (folder / TASKS).glob("*.parquet")}
         todo = [t for t in tasks if t.file not in done]
         result = SweepResult(folder, len(tasks), len(tasks) - len(todo), executor=where, notes=notes)

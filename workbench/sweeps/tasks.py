@@ -114,6 +114,10 @@ def write(table: pa.Table, folder: Path, name: str) -> Path:
     """Write a task's table to ``folder/name`` atomically (a temporary name, then a rename)."""
     path = Path(folder) / name
     tmp = path.with_name(f".{name}.{os.getpid()}.tmp")
-    pq.write_table(table, tmp)
-    os.replace(tmp, path)
+    try:
+        pq.write_table(table, tmp)
+        os.replace(tmp, path)
+    except BaseException:  # (Ctrl-C mid-write too: a half-written temporary is not left behind)
+        tmp.unlink(missing_ok=True)
+        raise
     return path
