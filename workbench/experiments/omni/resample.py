@@ -176,14 +176,12 @@ def _replayed(data: OmniData, est: Any, ref: np.ndarray, at: dict[int, int], fin
     gated = getattr(est, "gated_bearings", None)
     if gated is None or not len(gated):
         return out
-    for j in np.flatnonzero(np.isin(idx, np.asarray(gated, int))):
-        i = int(idx[j])
-        s = int(data.meas_step[i])
-        if s not in at or not np.isfinite(ref[at[s]]).all():
-            continue
-        p = ref[at[s]]
-        d = final[int(data.meas_lm[i])] - p[:2]
-        out[j] = wrap(data.meas_bearing[i] - (math.atan2(d[1], d[0]) - p[2]))
+    j = np.flatnonzero(np.isin(idx, np.asarray(gated, int)))
+    i = idx[j]
+    row = np.array([at.get(int(s), -1) for s in data.meas_step[i]], int)
+    p = np.where((row >= 0)[:, None], ref[np.maximum(row, 0)], np.nan)
+    d = final[np.asarray(data.meas_lm, int)[i]] - p[:, :2]
+    out[j] = wrap(np.asarray(data.meas_bearing, float)[i] - (np.arctan2(d[:, 1], d[:, 0]) - p[:, 2]))
     return out
 
 

@@ -103,8 +103,7 @@ class _Incremental:
         self.params.setOptimizationParams(gtsam.ISAM2GaussNewtonParams(0.01))
         self.isam = gtsam.ISAM2(self.params) if solver else None
         n_lm = len(data.landmarks)
-        self.marks = _Landmarks(n_lm, data.sigma_bearing, math.radians(cfg.graph_parallax_deg), cfg.huber,
-                                 fov=data.fov)
+        self.marks = _Landmarks.of(data, cfg)
         self.first_seen = np.full(n_lm, -1)
         self.init_step = np.full(n_lm, -1)
         self.known: dict[int, np.ndarray] = {}   # each pose as last estimated

@@ -58,6 +58,13 @@ class _Landmarks:
         self.own: dict[tuple[int, int], float] = {}  # (keyframe, landmark) -> its bearing's own sigma
         self.noises: dict[float, gtsam.noiseModel.Base] = {}
 
+    @classmethod
+    def of(cls, data: OmniData, cfg) -> _Landmarks:
+        """The graph estimators' bookkeeping for ``data`` as ``cfg`` sets it (the bearings' sigma, the
+        parallax a landmark enters with, the Huber threshold, the field of view)."""
+        return cls(len(data.landmarks), data.sigma_bearing, math.radians(cfg.graph_parallax_deg), cfg.huber,
+                   fov=data.fov)
+
     def factor(self, kf: int, lm: int, bearing: float) -> gtsam.BearingFactor2D:
         sigma = self.own.get((kf, lm))
         noise = self.noise if sigma is None else self.noises.setdefault(sigma, bearing_noise(sigma, self.huber))

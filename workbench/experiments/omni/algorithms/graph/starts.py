@@ -160,8 +160,7 @@ def _prepare(data: OmniData, cfg: OmniConfig, kf: Keyframes, start: Start):
     mapped = np.isfinite(start.landmarks).all(axis=1)
     threshold = gate_of(cfg)
     gated = cfg.nis_gate > 0.0 or outlier_rate(cfg) > 0.0
-    marks = _Landmarks(n_lm, data.sigma_bearing, math.radians(cfg.graph_parallax_deg), cfg.huber,
-                            fov=data.fov)
+    marks = _Landmarks.of(data, cfg)
     values = gtsam.Values()
     for e in range(E):
         values.insert(X(e), gtsam.Pose2(*start.poses[e]))
