@@ -41,10 +41,12 @@ start, and the settings it leaves with why).
   sandwich's variance is taken instead. Each value's 95 % interval is ``exp(x +- 1.96 sd)``
   (:func:`intervals`), about the whole log's optimum found at the interval's own scale and each side
   out to the likelihood ratio's bound where the NLL rises slower than the curvature says
-  (:mod:`.optimum`: sea's acceleration then covered 150 of 160 tunings, where 141). Measured on sea's simulation (``benchmarks/tune_noise_recovery.py --cases
-  sea``, 40 logs): the Hessian's alone covered 87.5 % of the time (over the logs the estimates
-  spread 1.16-1.21 times its sd), with the sandwich 90-95 %. A value whose interval spans more than a factor
-  of :data:`SPAN`, whose curvature is not positive, or along which the likelihood is not smooth
+  (:mod:`.optimum`). Measured on sea's simulation (``benchmarks/tune_noise_recovery.py --cases
+  sea``): on 40 logs the Hessian's alone covered 87.5 % of the time (over the logs the estimates
+  spread 1.16-1.21 times its sd), with the sandwich 89-97.5 %; on 80 logs with the last step and
+  the likelihood ratio's sides 94-100 % (the acceleration 150 of 160 tunings, where 141). A value
+  whose interval spans more than a factor of :data:`SPAN`, whose curvature is not positive, or
+  along which the likelihood is not smooth
   (:func:`rough`: the curvature at twice the step differs by more than :data:`ROUGH`; measured on
   the paper's bicycle SLAM, where the speed sigma's "interval" missed the truth in 17 of 20 logs)
   is *not identified by these data*: it is kept at its start (what the user or the data said)
