@@ -141,3 +141,10 @@ def test_an_entry_waits_while_one_ray_alone_gives_its_place_by_hand():
     assert landmarks.chance_agreement(7, 6, 1 / 180) < 1e-6
     assert marks.trusted(point, seven, np.array([True] * 6 + [False]), tol)
     assert marks.trusted(point, np.vstack([side, side]), np.ones(6, bool), tol)   # uncontrolled, but not judged
+    # three agreeing rays wait for a fourth while agreement means something; where the tolerance
+    # spans the field of view (any ray agrees: MRCLAM 6 robot 1 after a blind stretch, 41 deg either
+    # side in a field of 66) a fourth would agree as surely, and the three enter
+    assert not marks.trusted(point, side, np.ones(3, bool), tol)
+    assert landmarks.ray_chance(np.radians(181.0), 2 * np.pi) == 1.0
+    assert marks.trusted(point, side, np.ones(3, bool), np.radians(181.0))
+    assert not marks.trusted(point, four, np.array([True, True, True, False]), np.radians(181.0))   # a misread shows
