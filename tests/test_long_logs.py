@@ -33,6 +33,14 @@ def _drive(tmp_path, scale: float):
     return data, cfg
 
 
+def _mrclam(robot: int):
+    cfg = api.configure("omni", "mrclam", data=str(DATA / "mrclam6"), robot=robot)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        data = api.get("omni").dataset(cfg, 0)
+    return data, cfg, graph.keyframes(data, cfg)
+
+
 def _smoothers(data, cfg):
     kf = graph.keyframes(data, cfg)
     est = graph.isam2(data, cfg, kf)
@@ -93,11 +101,7 @@ def test_isam2_s_passes_at_run_aways_cost_at_most_a_budget_of_whole_solves(monke
 
     monkeypatch.setattr(incremental, "JUMP_POSITION", 1e-3)
     monkeypatch.setattr(incremental, "JUMP_HEADING", math.radians(0.01))
-    cfg = api.configure("omni", "mrclam", data=str(DATA / "mrclam6"), robot=1)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        data = api.get("omni").dataset(cfg, 0)
-    kf = graph.keyframes(data, cfg)
+    data, cfg, kf = _mrclam(1)
     inc = incremental._Incremental(data, cfg, kf)
     for e in range(len(kf.steps)):
         inc.step(e)
@@ -126,11 +130,7 @@ def test_a_jump_that_a_second_step_settles_gets_no_whole_graph_pass(monkeypatch)
     five, and its trajectory ends within 1 cm of the one with every pass."""
     from workbench.experiments.omni.algorithms.graph import incremental
 
-    cfg = api.configure("omni", "mrclam", data=str(DATA / "mrclam6"), robot=3)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        data = api.get("omni").dataset(cfg, 0)
-    kf = graph.keyframes(data, cfg)
+    data, cfg, kf = _mrclam(3)
     checked = graph.isam2(data, cfg, kf)
     monkeypatch.setattr(incremental._Incremental, "_settles", lambda self: False)
     every = graph.isam2(data, cfg, kf)

@@ -44,20 +44,28 @@ REACH = 2.0            # a side at most this many Wald half-widths
 POLISH_REACH = 3.0     # the last step at most this many standard deviations of each value
 
 
+def _block(H: np.ndarray, identified: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    """The identified values' indices, their block of ``H`` (symmetrised) and its inverse (None
+    where there is none)."""
+    idx = np.flatnonzero(identified)
+    sub = 0.5 * (H[np.ix_(idx, idx)] + H[np.ix_(idx, idx)].T)
+    if idx.size == 0:
+        return idx, sub, None
+    try:
+        return idx, sub, np.linalg.inv(sub)
+    except np.linalg.LinAlgError:
+        return idx, sub, None
+
+
 def polished(f: Any, x: np.ndarray, H: np.ndarray, identified: np.ndarray,
              prefetch: Any = None) -> np.ndarray:
     """``x`` moved by one Newton step on the identified values, its gradient by central
     differences one standard deviation (``sqrt(C_ii)``, ``C`` the inverse of ``H``'s identified
     block) wide, the step at most :data:`POLISH_REACH` of them in any value and kept only where
     ``f`` descends (halved once where it does not)."""
-    idx = np.flatnonzero(identified)
+    idx, sub, C = _block(H, identified)
     f0 = f(x)
-    if idx.size == 0 or not np.isfinite(f0):
-        return x
-    sub = 0.5 * (H[np.ix_(idx, idx)] + H[np.ix_(idx, idx)].T)
-    try:
-        C = np.linalg.inv(sub)
-    except np.linalg.LinAlgError:
+    if C is None or not np.isfinite(f0):
         return x
     sd = np.sqrt(np.diag(C))
     if not (np.isfinite(sd).all() and (sd > 0).all()):
@@ -85,14 +93,9 @@ def widened(f: Any, x: np.ndarray, H: np.ndarray, bounds: np.ndarray, identified
     """``bounds`` (``(n, 2)``, the Wald intervals about ``x``) each side moved out to the
     likelihood ratio's bound where that is farther; ``H``: the curvature the Wald intervals were
     read from (the identified values' block is inverted); ``f``: the NLL of the log-values."""
-    idx = np.flatnonzero(identified)
+    idx, _, C = _block(H, identified)
     out = np.array(bounds, float)
-    if idx.size == 0 or not np.isfinite(f0 := f(x)):
-        return out
-    sub = 0.5 * (H[np.ix_(idx, idx)] + H[np.ix_(idx, idx)].T)
-    try:
-        C = np.linalg.inv(sub)
-    except np.linalg.LinAlgError:
+    if C is None or not np.isfinite(f0 := f(x)):
         return out
     plan = []
     for pos, i in enumerate(idx):
