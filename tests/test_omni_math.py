@@ -168,10 +168,11 @@ def test_integrate_is_the_step_by_step_recursion_7():
     assert np.allclose(phi, prod)
     assert all(np.linalg.eigvalsh(c).min() > -1e-15 for c in covs)
 
-def test_the_covariance_recursion_unrolled_is_the_step_by_step_one():
-    """motion._recursion: ``P[k+1] = F P F' + N`` with ``F = I + a e3'``, from prefix sums, equals the
-    loop a step at a time (to round-off over 20,000 steps whose cross terms reach hundreds), for
-    each motion model's covariances through Motion.propagate as well."""
+def test_the_compiled_covariance_recursion_is_the_step_by_step_one():
+    """motion._recursion: ``P[k+1] = F P F' + N`` with ``F = I + a e3'``, compiled with its products
+    written out, equals the matrix products a step at a time (to round-off over 20,000 steps whose
+    cross terms reach hundreds), for each motion model's covariances through Motion.propagate as
+    well."""
     from workbench.experiments.omni.motion import _recursion
 
     rng = np.random.default_rng(7)

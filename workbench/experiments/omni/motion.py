@@ -24,8 +24,10 @@ given a start pose, so a stretch of dead reckoning costs no Python loop.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
 from workbench.estimation.angles import wrap
@@ -181,57 +183,77 @@ class Stretches:
 
     def propagate(self, i: int, j: int, start: np.ndarray, cov: np.ndarray
                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """:meth:`Motion.propagate` from ``start`` / ``cov`` over steps ``i`` to ``j`` of the log."""
-        o = self.poses[i:j + 1]
-        turn = start[2] - o[0, 2]
-        c, s = np.cos(turn), np.sin(turn)
-        R = np.array([[c, -s], [s, c]])
-        poses = np.empty((j - i + 1, 3))
-        poses[:, :2] = start[:2] + (o[:, :2] - o[0, :2]) @ R.T
-        poses[:, 2] = wrap(start[2] + (o[:, 2] - o[0, 2]))
-        a = self.a[i:j] @ R.T
-        T = np.eye(3)
-        T[:2, :2] = R
-        noise = T @ self.control[i:j] @ T.T + self.q[i:j]
-        covs = _recursion(np.asarray(cov, float), a, noise)
-        phi = np.eye(3)
-        phi[:2, 2] = a.sum(axis=0)
-        return poses, covs, phi
+        """:meth:`Motion.propagate` from ``start`` / ``cov`` over steps ``i`` to ``j`` of the log
+        (:func:`_moved`: compiled, a stretch being a few steps and a run thousands of stretches)."""
+        return _moved(self.poses[i:j + 1], self.a[i:j], self.control[i:j], self.q[i:j],
+                      np.asarray(start, float), np.asarray(cov, float))
 
 
-def _recursion(p0: np.ndarray, a: np.ndarray, noise: np.ndarray) -> np.ndarray:
-    """``P[k+1] = F[k] P[k] F[k]' + N[k]`` for every ``k`` at once, ``(K+1, 3, 3)``, where each
-    ``F[k] = I + a[k] e3'`` (``a (K, 2)``: the heading column of (8)'s ``F_R``, zero in its third
-    entry).
-
-    Such factors are nilpotent updates, ``(a e3')(b e3') = 0``, so a run of them multiplies to
-    ``I + (A[k] - A[j]) e3'`` with ``A`` the prefix sums of ``a``, and the recursion unrolls to
-    ``P[k] = Phi P[0] Phi' + sum_{j<k} (I + d e3') N[j] (I + d e3')'``, ``d = A[k] - A[j+1]``. Each
-    term is ``N + d n' + n d' + N33 d d'`` (``n = N e3``), so the sums over ``j`` are prefix sums
-    of ``N``, ``n``, ``N33``, ``B n'``, ``N33 B`` and ``N33 B B'`` (``B[j] = A[j+1]``): the loop of
-    a step at a time in a few array operations (the EKF's predict ran 45 % of its time in it)."""
+@numba.njit(cache=True)
+def _moved(o: np.ndarray, a: np.ndarray, control: np.ndarray, q: np.ndarray, start: np.ndarray,
+           p0: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A stretch of the log's own frame (``o``, its poses; ``a``, ``control``, ``q`` per step as in
+    :class:`Stretches`) moved onto ``start`` by the rotation ``R`` of its heading: the poses turned
+    and shifted, ``a`` turned by ``R``, the controls' noise by ``T = diag(R, 1)`` (``T U T' + Q``),
+    then :func:`_recursion` and ``Phi = I + (sum a) e3'``."""
     k = len(a)
-    A = np.zeros((k + 1, 3))
-    A[1:, :2] = np.cumsum(a, axis=0)
-    B = A[1:]                                  # B[j] = A[j+1]
-    n = noise[:, :, 2]                         # N[j] e3
-    n33 = noise[:, 2, 2]
+    turn = start[2] - o[0, 2]
+    c, s = math.cos(turn), math.sin(turn)
+    poses = np.empty((k + 1, 3))
+    for n in range(k + 1):
+        dx, dy = o[n, 0] - o[0, 0], o[n, 1] - o[0, 1]
+        poses[n, 0] = start[0] + (c * dx - s * dy)
+        poses[n, 1] = start[1] + (s * dx + c * dy)
+        poses[n, 2] = math.pi - (math.pi - (start[2] + (o[n, 2] - o[0, 2]))) % (2.0 * math.pi)
+    turned = np.empty((k, 2))
+    noise = np.empty((k, 3, 3))
+    T = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    phi = np.eye(3)
+    for n in range(k):
+        turned[n, 0] = c * a[n, 0] - s * a[n, 1]
+        turned[n, 1] = s * a[n, 0] + c * a[n, 1]
+        phi[0, 2] += turned[n, 0]
+        phi[1, 2] += turned[n, 1]
+        for r in range(3):
+            for m in range(3):
+                acc = 0.0
+                for u in range(3):
+                    for v in range(3):
+                        acc += T[r, u] * control[n, u, v] * T[m, v]
+                noise[n, r, m] = acc + q[n, r, m]
+    return poses, _recursion(p0, turned, noise), phi
 
-    def prefix(x: np.ndarray) -> np.ndarray:   # sums over j < k, k = 0..K
-        out = np.zeros((k + 1, *x.shape[1:]))
-        np.cumsum(x, axis=0, out=out[1:])
-        return out
 
-    sN, sn, s33 = prefix(noise), prefix(n), prefix(n33)
-    sBn = prefix(B[:, :, None] * n[:, None, :])
-    s33B = prefix(n33[:, None] * B)
-    s33BB = prefix(n33[:, None, None] * B[:, :, None] * B[:, None, :])
-    An = A[:, :, None] * sn[:, None, :]        # A[k] sum n'
-    AB = A[:, :, None] * s33B[:, None, :]      # A[k] sum N33 B'
-    covs = (sN + An + An.transpose(0, 2, 1) - sBn - sBn.transpose(0, 2, 1)
-            + s33[:, None, None] * A[:, :, None] * A[:, None, :] - AB - AB.transpose(0, 2, 1) + s33BB)
-    # the start's part: (I + A e3') P0 (I + A e3')'
-    c = p0[:, 2]
-    pa = A[:, :, None] * c[None, None, :]
-    covs += p0 + pa + pa.transpose(0, 2, 1) + p0[2, 2] * A[:, :, None] * A[:, None, :]
-    return 0.5 * (covs + covs.transpose(0, 2, 1))
+@numba.njit(cache=True)
+def _recursion(p0: np.ndarray, a: np.ndarray, noise: np.ndarray) -> np.ndarray:
+    """``P[k+1] = F[k] P[k] F[k]' + N[k]`` a step at a time, ``(K+1, 3, 3)``, where each
+    ``F[k] = I + a[k] e3'`` (``a (K, 2)``: the heading column of (8)'s ``F_R``, zero in its third
+    entry), so that ``F P F' = P + a p' + p a' + P33 a a'`` with ``p = P e3``; each step
+    symmetrised. Compiled: a SLAM filter propagates over thousands of short stretches a run, where
+    array operations spent their time in call overhead (the prefix-sum unrolling this replaced, at
+    34 us a stretch, against under 1 us here; it also lost digits over long stretches by
+    cancellation)."""
+    k = len(a)
+    out = np.empty((k + 1, 3, 3))
+    P = np.empty((3, 3))
+    for r in range(3):
+        for m in range(3):
+            P[r, m] = 0.5 * (p0[r, m] + p0[m, r])
+    out[0] = P
+    av = np.zeros(3)
+    col = np.empty(3)
+    for n in range(k):
+        av[0], av[1] = a[n, 0], a[n, 1]
+        for r in range(3):
+            col[r] = P[r, 2]
+        c33 = P[2, 2]
+        for r in range(3):
+            for m in range(r, 3):
+                v = (P[r, m] + av[r] * col[m] + col[r] * av[m] + c33 * av[r] * av[m]
+                     + 0.5 * (noise[n, r, m] + noise[n, m, r]))
+                out[n + 1, r, m] = v
+                out[n + 1, m, r] = v
+        for r in range(3):
+            for m in range(3):
+                P[r, m] = out[n + 1, r, m]
+    return out

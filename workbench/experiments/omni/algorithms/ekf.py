@@ -50,7 +50,7 @@ from workbench.estimation import outliers
 from workbench.estimation.angles import wrap
 from workbench.estimation.consistency import Innovations
 from workbench.estimation.metrics import chi2_quantile
-from workbench.experiments.omni.algorithms import triangulation
+from workbench.experiments.omni.algorithms import bearing_update, triangulation
 from workbench.experiments.omni.config import OmniConfig
 from workbench.experiments.omni.estimate import SlamEstimate
 from workbench.experiments.omni.motion import Stretches
@@ -112,39 +112,6 @@ class BearingEkf:
         return poses[1:], covs[1:]
 
     # --- (9)-(13) --------------------------------------------------------------------------
-    def _predicted(self, x: np.ndarray, off: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Bearings (9) of the landmarks at ``off`` from state ``x`` and their Jacobian ``H``."""
-        m = len(off)
-        dx = x[off] - x[0]
-        dy = x[off + 1] - x[1]
-        q = dx * dx + dy * dy
-        H = np.zeros((m, len(x)))
-        rows = np.arange(m)
-        H[rows, 0] = dy / q
-        H[rows, 1] = -dx / q
-        H[rows, 2] = -1.0
-        H[rows, off] = -dy / q
-        H[rows, off + 1] = dx / q
-        return np.arctan2(dy, dx) - x[2], H
-
-    def _second_order(self, x: np.ndarray, off: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """The second-order terms of each bearing: its mean ``tr(B C) / 2`` and variance
-        ``tr(B C B C) / 2``, with ``B`` the Hessian of ``atan2(d_y, d_x)`` in ``d = landmark -
-        vehicle`` and ``C`` the covariance of ``d``."""
-        a = x[off] - x[0]
-        b = x[off + 1] - x[1]
-        q2 = (a * a + b * b) ** 2
-        B = np.empty((len(off), 2, 2))
-        B[:, 0, 0] = 2 * a * b / q2
-        B[:, 1, 1] = -B[:, 0, 0]
-        B[:, 0, 1] = B[:, 1, 0] = (b * b - a * a) / q2
-        P = self.P
-        C = np.empty((len(off), 2, 2))
-        for i, o in enumerate(off):
-            C[i] = P[o:o + 2, o:o + 2] + P[:2, :2] - P[o:o + 2, :2] - P[:2, o:o + 2]
-        BC = B @ C
-        return 0.5 * np.trace(BC, axis1=1, axis2=2), 0.5 * np.einsum("kij,kji->k", BC, BC)
-
     def update(self, lms: np.ndarray, bearings: np.ndarray, index: np.ndarray | None = None,
                t: float = float("nan")) -> None:
         """Update with bearings of initialised landmarks, all at once (``index``: their indices in
@@ -161,59 +128,51 @@ class BearingEkf:
         vector's covariance). They are negligible where the geometry is known to a fraction of
         the range (the paper's simulation) and large where it is not: on MRCLAM, a landmark
         a few metres away seen again after a blind stretch of a minute (vehicle 2 m and 25 deg
-        uncertain), where the first-order update collapses the covariance onto a wrong pose."""
+        uncertain), where the first-order update collapses the covariance onto a wrong pose.
+
+        The arithmetic is :mod:`.bearing_update`'s compiled kernels (the gate between them here)."""
         if len(lms) == 0:
             return
         index = np.full(len(lms), -1) if index is None else np.asarray(index)
         off = self.slot[lms]
-        h, H = self._predicted(self.x, off)
-        nu = wrap(bearings - h)
-        PH = self.P @ H.T
         own = index >= 0
         r = np.full(len(lms), self.r)
         if self.data.meas_sigma is not None and own.any():
             r[own] = self.data.bearing_sigma(index[own]) ** 2
-        S = H @ PH + np.diag(r)
-        if self.second_order:
-            bias, extra = self._second_order(self.x, off)
-            nu = wrap(nu - bias)
-            S = S + np.diag(extra)
+        nu, S, PH = bearing_update.innovations(self.x, self.P, off, np.asarray(bearings, float), r,
+                                               bool(self.second_order))
         if math.isfinite(self.gate) or self.outlier > 0:
-            keep = nu**2 / np.diag(S) <= self.threshold(np.diag(S))
+            s = np.diag(S)
+            keep = nu**2 / s <= self.threshold(s)
             if not keep.all():
                 self.gated.extend(int(i) for i in index[~keep])
-                self.innovations.extend((t, float(v), float(s), float(q), 0.0)
-                                        for v, s, q in zip(nu[~keep], np.diag(S)[~keep], r[~keep], strict=True))
-                H, nu, PH, r = H[keep], nu[keep], PH[:, keep], r[keep]
-                S = S[np.ix_(keep, keep)]
+                self.innovations.extend((t, float(v), float(q), float(w), 0.0)
+                                        for v, q, w in zip(nu[~keep], s[~keep], r[~keep], strict=True))
+                nu, PH, r = nu[keep], np.ascontiguousarray(PH[:, keep]), r[keep]
+                S = np.ascontiguousarray(S[np.ix_(keep, keep)])
                 if len(nu) == 0:
                     return
-        try:
-            K = np.linalg.solve(S, PH.T).T
-        except np.linalg.LinAlgError:
-            self.failures += 1
-            return
-        self._note(t, nu, S, r)
-        x = self.x + K @ nu
-        P = self.P - K @ S @ K.T
+        ok, x, P, seq, w = bearing_update.corrected(self.x, self.P, nu, S, PH)
+        if ok:
+            self.innovations.extend((t, float(a * b), float(a * a), float(q), 1.0)
+                                    for a, b, q in zip(seq, w, r, strict=True))
+        else:   # S not positive definite: solved by LU, each bearing noted with its own S_ii
+            try:
+                K = np.linalg.solve(S, PH.T).T
+            except np.linalg.LinAlgError:
+                self.failures += 1
+                return
+            self.innovations.extend((t, float(v), float(q), float(w), 1.0)
+                                    for v, q, w in zip(nu, np.diag(S), r, strict=True))
+            x = self.x + K @ nu
+            P = self.P - K @ S @ K.T
+            P = 0.5 * (P + P.T)
         if not (np.isfinite(x).all() and np.isfinite(P).all()):
             self.failures += 1
             return
         self.x = x
         self.x[2] = wrap(self.x[2])
-        self.P = 0.5 * (P + P.T)
-
-    def _note(self, t: float, nu: np.ndarray, S: np.ndarray, r: np.ndarray) -> None:
-        """Note the update's innovations one bearing at a time (:meth:`update`); where ``S`` is not
-        positive definite (the paper's augmentation can make it so) each bearing's own ``S_ii``."""
-        try:
-            L = np.linalg.cholesky(S)
-            seq, w = np.diag(L), np.linalg.solve(L, nu)
-            self.innovations.extend((t, float(a * b), float(a * a), float(q), 1.0)
-                                    for a, b, q in zip(seq, w, r, strict=True))
-        except np.linalg.LinAlgError:
-            self.innovations.extend((t, float(v), float(s), float(q), 1.0)
-                                    for v, s, q in zip(nu, np.diag(S), r, strict=True))
+        self.P = P
 
     # --- (1)-(5), (14)-(15) ----------------------------------------------------------------
     def start(self, lm: int, bearing: float, step: int, r2: float | None = None) -> None:
