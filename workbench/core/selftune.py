@@ -71,8 +71,9 @@ start, and the settings it leaves with why).
 The data are run 0's (a real log is one run); the values found are what the estimators assume
 (``assume_*``) in every run. The Hessian's and the roughness's runs, independent of one another, are
 shared by two forked processes (:meth:`.objective._Objective.prefetch`); with the EKF's odometry read
-once per run in its own frame (:class:`~workbench.experiments.omni.motion.Stretches`) MRCLAM 6 robot 3
-tunes in 62 s where it took 85 (``benchmarks/tune_noise_mrclam.py``).
+once per run in its own frame (:class:`~workbench.experiments.omni.motion.Stretches`) and its
+propagation and update compiled (:mod:`~workbench.experiments.omni.algorithms.bearing_update`) a
+MRCLAM 6 robot tunes in 19-36 s where it took 41-86 (``benchmarks/tune_noise_mrclam.py``).
 """
 
 from __future__ import annotations
