@@ -4,14 +4,12 @@ pose."""
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable
 
 import gtsam
 import numpy as np
 from gtsam.symbol_shorthand import L, X
 
-from workbench.estimation.metrics import chi2_quantile
 from workbench.experiments.omni.algorithms import residuals
 from workbench.experiments.omni.algorithms.graph.gating import _bearing_test, gate_of, gated_indices, outlier_rate
 from workbench.experiments.omni.algorithms.graph.keyframes import Keyframes, _lm_params, _pose, keyframes, to_world
@@ -20,12 +18,11 @@ from workbench.experiments.omni.algorithms.graph.landmarks import (
     CHANCE,
     _batch_graph,
     _Landmarks,
-    _residuals,
     chance_agreement,
-    consensus,
     ray_chance,
     snooped,
 )
+from workbench.experiments.omni.algorithms.graph.relocation import _relocate, _tolerance
 from workbench.experiments.omni.algorithms.graph.starts import Start, _best_start, fit, named_starts
 from workbench.experiments.omni.config import OmniConfig
 from workbench.experiments.omni.estimate import SlamEstimate
@@ -110,11 +107,6 @@ REGATE_ROUNDS = 3
 """How many times the batch re-gates every bearing against its own smoothed answer."""
 
 
-def _tolerance(data: OmniData, cfg: OmniConfig) -> float:
-    """How far (rad) a ray may be from a landmark's place and agree with it: the gate's."""
-    return math.sqrt(max(float(gate_of(cfg)(data.sigma_bearing ** 2)), 0.0)) * data.sigma_bearing
-
-
 def _rays(kf: Keyframes, marks: _Landmarks) -> dict[int, list[tuple[int, float]]]:
     """Each landmark in the map -> its bearings ``(keyframe, bearing)``."""
     rays: dict[int, list[tuple[int, float]]] = {}
@@ -160,68 +152,6 @@ def _contradicted(kf: Keyframes, marks: _Landmarks, result: gtsam.Values) -> set
                          landmark=lm_of).contradicted())
 
 
-def _relocate(data: OmniData, cfg: OmniConfig, rays: dict[int, list[tuple[int, float]]], marks: _Landmarks,
-              rejected: set[tuple[int, int]], result: gtsam.Values, smoothed: np.ndarray,
-              suspect: set[int] = frozenset()) -> tuple[set[tuple[int, int]], list[int]]:
-    """Landmarks placed where their own bearings disagree, moved to where they agree.
-
-    A landmark enters from the first rays that agree (:func:`.landmarks.consensus`); where those
-    were misread ids (another landmark's bearings under its id) it sits where they meet, and the
-    gate then leaves out its own bearings, each one on its own too far from that place (a
-    synthetic log with 10 % of the ids misread: landmark 32, 49 true bearings of 55, 62 m off).
-    Here every landmark whose bearings that miss it by more than the gate's tolerance could, capped,
-    gain the chi-square below (two of them or more: where least squares hold a landmark, capping
-    the bearings it misses gains at most the tolerance's square each) is placed again by consensus
-    over all its bearings, from the smoothed poses, and moves there (``result``
-    updated in place; those bearings taken in and the rest left out; the next solve starts from
-    it) where
-
-    * the gate left more than half its bearings out, or most of them miss it by over 3 robust
-      sigmas (``suspect``, :func:`_contradicted`: the gate, which weighs the pose's and the
-      landmark's covariances too, can keep what misses; landmark 52 of that log, 5 of its 9
-      bearings missed and 3 gated, sat 61 m off), and more of them agree on the new place than
-      were taken in at the old: RANSAC's reading (Fischler and Bolles 1981), the place most rays
-      support, not the first few; or
-    * the new place explains its bearings better by the truncated squared error (MSAC: Torr and
-      Zisserman 2000; each bearing's squared residual, capped at the tolerance's square, so an
-      outlier costs the same wherever it points), by more than the 99 % chi-square of the two
-      coordinates a place has (:data:`MOVE_GAIN`). Landmark 87 of that log: 5 true bearings,
-      their rays 14 deg apart, and one misread from 78 m away; least squares put it 44 m off
-      where the misread meets four of the five, which miss by up to 4.6 sigmas, none gated.
-
-    The consensus here takes pairs of rays whose parallax is twice the tolerance (two rays
-    within it cannot then meet at infinity), not the insertion's ``min_parallax``: 87's own rays
-    never have the 15 deg a log's landmarks enter with, and the cost, not the parallax, judges
-    the place. On the synthetic drives without misreads, Student-t bearings, blind stretches
-    or a misstated odometry, and on MRCLAM 6 and the paper's simulation, nothing moves (measured:
-    the maps to the last digit)."""
-    tolerance = _tolerance(data, cfg)
-    gain_needed = chi2_quantile(MOVE_GAIN, 2) * data.sigma_bearing ** 2
-    out, moved = set(rejected), []
-    for lm, held in rays.items():
-        if len(held) < AGREEING:
-            continue
-        left = sum((e, lm) in rejected for e, _ in held)
-        poses = smoothed[[e for e, _ in held]]
-        bearings = np.array([b for _, b in held])
-        here = _residuals(np.asarray(result.atPoint2(L(lm)), float), poses, bearings)
-        outvoted = 2 * left > len(held) or lm in suspect
-        if not outvoted and np.sum(np.abs(here) >= tolerance) * tolerance ** 2 <= gain_needed:
-            continue  # where least squares hold it, capping the bearings it misses gains at most this
-        found = consensus(poses, bearings, tolerance, min(marks.min_parallax, 2.0 * tolerance))
-        if found is None:
-            continue
-        point, agree = found
-        gain = _truncated(here, tolerance) - _truncated(_residuals(point, poses, bearings), tolerance)
-        if not (outvoted and int(agree.sum()) > len(held) - left) and gain <= gain_needed:
-            continue
-        result.update(L(lm), gtsam.Point2(*point))
-        for (e, _), ok in zip(held, agree, strict=True):
-            (out.discard if ok else out.add)((e, lm))
-        moved.append(lm)
-    return out, moved
-
-
 def _snoop(data: OmniData, rays: dict[int, list[tuple[int, float]]], rejected: set[tuple[int, int]],
            result: gtsam.Values, smoothed: np.ndarray) -> tuple[set[tuple[int, int]], list[int]]:
     """Each landmark's one bearing its others reject (:func:`.landmarks.snooped`, from the
@@ -240,16 +170,6 @@ def _snoop(data: OmniData, rays: dict[int, list[tuple[int, float]]], rejected: s
             result.update(L(lm), gtsam.Point2(*found[1]))
             moved.append(lm)
     return out, moved
-
-
-MOVE_GAIN = 0.99
-"""The chi-square probability (2 degrees of freedom: a place's coordinates) the truncated squared
-error must fall by for a landmark to move on it alone (:func:`_relocate`)."""
-
-
-def _truncated(r: np.ndarray, tolerance: float) -> float:
-    """MSAC's cost of residuals ``r`` (rad): each squared, capped at ``tolerance`` squared."""
-    return float(np.sum(np.minimum(np.square(r), tolerance ** 2)))
 
 
 def _batch_marginals(graph: gtsam.NonlinearFactorGraph, result: gtsam.Values, E: int, inserted: np.ndarray

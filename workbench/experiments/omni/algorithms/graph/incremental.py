@@ -15,6 +15,7 @@ import numpy as np
 from gtsam.symbol_shorthand import L, X
 
 from workbench.estimation.metrics import chi2_quantile
+from workbench.experiments.omni.algorithms.graph import relocation
 from workbench.experiments.omni.algorithms.graph.gating import _bearing_test, gate_of, outlier_rate
 from workbench.experiments.omni.algorithms.graph.keyframes import (
     Keyframes,
@@ -137,6 +138,12 @@ class _Incremental:
         self.point_read: dict[int, float] = {}   # when each landmark's marginal was last read (follow)
         self.newest_cov: np.ndarray | None = None
         self.refreshed = -math.inf
+        # each landmark's bearings, how many left out since it was last looked at, those placed again (relocation)
+        self.rays: dict[int, list[tuple[int, float]]] = {}
+        self.left_since: dict[int, int] = {}
+        self.look_after: dict[int, int] = {}
+        self.look_work = 0
+        self.relocated: list[tuple[int, int]] = []
 
     def step(self, e: int) -> np.ndarray:
         """Add keyframe ``e`` (its odometry, its bearings, the landmarks it completes); update.
@@ -161,8 +168,10 @@ class _Incremental:
             lm, b, sigma = int(lm), float(b), float(sigma)
             if self.first_seen[lm] < 0:
                 self.first_seen[lm] = kf.steps[e]
+            self.rays.setdefault(lm, []).append((e, b))
             if marks.inserted[lm] and not self._consistent(lm, b, sigma):
                 self.rejected.add((e, lm))
+                self.left_since[lm] = self.left_since.get(lm, 0) + 1
                 continue
             factors, point = marks.observe(e, lm, b, self._pose_of, tolerance=self._tolerance(), sigma=sigma)
             for factor in factors:
@@ -190,6 +199,8 @@ class _Incremental:
         self.start.insert(values)
         self.start.update(X(e), self.chain)
         self.done = e
+        if self.follow and not threw and self.isam is not None and self.pass_work + e + 1 <= PASS_BUDGET * (e + 1):
+            threw = any([relocation.relocate(self, e, lm) for lm in set(lms.tolist()) if relocation.due(self, e, lm)])
         t = self.data.t[kf.steps[e]]
         periodic = cfg.lm_every > 0.0 and (entered or t - self.last_pass >= cfg.lm_every)
         if threw and not periodic and self.isam is not None and self.pass_work + e + 1 > PASS_BUDGET * (e + 1):
@@ -237,8 +248,7 @@ class _Incremental:
 
     START_REFRESH = 20.0
     """s: how often, following iSAM2, the start of a pass at a run-away is taken from its estimate
-    (0.6 ms for 2,900 variables: a cost over the log of its length times its length over 20 s,
-    0.05 s on a 14,000-pose drive)."""
+    (0.6 ms for 2,900 variables; 0.05 s over a 14,000-pose drive)."""
 
     POINT_REFRESH = 10.0
     """s: how old a landmark's marginal may be before the gate reads it again from iSAM2 (follow)."""
@@ -347,13 +357,9 @@ class _Incremental:
         every variable past the relinearisation threshold relinearised (``force_relinearize``,
         1-10 ms on MRCLAM where a whole-graph LM pass takes 80), and the newest pose must stay
         within :data:`SETTLED` of the thresholds of where the jump put it: Gauss-Newton converges
-        fast near the optimum, and a run-away's next step is as large as its first. Measured on
-        MRCLAM 6 robots 1-5 (36 jumps, an LM pass run beside each): at the 12 that settled (next
-        step 0.005-0.07 m, 0.02-0.46 deg) LM lands 0.004-0.07 m and under 0.7 deg from the jumped
-        pose; of the 24 that did not (next step up to 7 m, 123 deg) LM lands up to 1.2 m and 59
-        deg away, and they get their pass. Robot 3's passes went 5 -> 1 and its updates from 1.57x
-        the plain GTSAM loop to 1.43x (``benchmarks/bench_isam2.py --log mrclam``); iSAM2's errors
-        moved by 0.2-6 mm, the batch's not at all."""
+        fast near the optimum, and a run-away's next step is as large as its first. On MRCLAM 6
+        robots 1-5 (36 jumps, an LM pass beside each) LM lands within 0.07 m and 0.7 deg of the 12
+        that settled, and up to 1.2 m and 59 deg from the 24 that did not (docs/long-logs.md)."""
         jumped = self.current
         params = gtsam.ISAM2UpdateParams()
         params.force_relinearize = True

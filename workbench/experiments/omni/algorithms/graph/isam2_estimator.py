@@ -74,11 +74,15 @@ def isam2(data: OmniData, cfg: OmniConfig, kf: Keyframes | None = None, map_ever
 def _remarks(data: OmniData, kf: Keyframes, inc: _Incremental) -> list[str]:
     """What went wrong in iSAM2 that its numbers do not show: where it was given up (its run-away
     passes past their budget, :data:`.incremental.PASS_BUDGET`, or an update no pass could mend),
-    after which its answer is the last LM pass's carried on with the odometry."""
+    after which its answer is the last LM pass's carried on with the odometry; and the landmarks it
+    placed again where their later bearings outvoted the place they entered at (:mod:`.relocation`)."""
+    moved = ", ".join(f"{lm} at {data.t[kf.steps[e]] - data.t[0]:.0f} s" for e, lm in inc.relocated)
+    out = [f"iSAM2 placed {len(inc.relocated)} landmark(s) again ({moved}): their later bearings outvoted the "
+           "places they had entered at (misread ids?)"] if inc.relocated else []
     if inc.isam is not None:
-        return []
+        return out
     at = inc.done if inc.gave_up is None else inc.gave_up
-    return [f"iSAM2 gave up at {data.t[kf.steps[at]] - data.t[0]:.0f} s: after {inc.passes} damped LM pass(es) "
+    return out + [f"iSAM2 gave up at {data.t[kf.steps[at]] - data.t[0]:.0f} s: after {inc.passes} damped LM pass(es) "
             "it kept running away; from there on its answer is the last pass's carried on with the odometry"]
 
 
