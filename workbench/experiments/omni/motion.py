@@ -204,7 +204,7 @@ def _moved(o: np.ndarray, a: np.ndarray, control: np.ndarray, q: np.ndarray, sta
         dx, dy = o[n, 0] - o[0, 0], o[n, 1] - o[0, 1]
         poses[n, 0] = start[0] + (c * dx - s * dy)
         poses[n, 1] = start[1] + (s * dx + c * dy)
-        poses[n, 2] = math.pi - (math.pi - (start[2] + (o[n, 2] - o[0, 2]))) % (2.0 * math.pi)
+        poses[n, 2] = wrap_one(start[2] + (o[n, 2] - o[0, 2]))
     turned = np.empty((k, 2))
     noise = np.empty((k, 3, 3))
     T = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
@@ -235,14 +235,13 @@ def _recursion(p0: np.ndarray, a: np.ndarray, noise: np.ndarray) -> np.ndarray:
     cancellation)."""
     k = len(a)
     out = np.empty((k + 1, 3, 3))
-    P = np.empty((3, 3))
     for r in range(3):
         for m in range(3):
-            P[r, m] = 0.5 * (p0[r, m] + p0[m, r])
-    out[0] = P
+            out[0, r, m] = 0.5 * (p0[r, m] + p0[m, r])
     av = np.zeros(3)
     col = np.empty(3)
     for n in range(k):
+        P = out[n]
         av[0], av[1] = a[n, 0], a[n, 1]
         for r in range(3):
             col[r] = P[r, 2]
@@ -253,7 +252,10 @@ def _recursion(p0: np.ndarray, a: np.ndarray, noise: np.ndarray) -> np.ndarray:
                      + 0.5 * (noise[n, r, m] + noise[n, m, r]))
                 out[n + 1, r, m] = v
                 out[n + 1, m, r] = v
-        for r in range(3):
-            for m in range(3):
-                P[r, m] = out[n + 1, r, m]
     return out
+
+
+@numba.njit(cache=True)
+def wrap_one(a: float) -> float:
+    """One angle wrapped to (-pi, pi], compiled (:func:`~workbench.estimation.angles.wrap`'s formula)."""
+    return math.pi - (math.pi - a) % (2.0 * math.pi)

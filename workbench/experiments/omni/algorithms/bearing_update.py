@@ -23,10 +23,7 @@ import math
 import numba
 import numpy as np
 
-
-@numba.njit(cache=True)
-def _wrap(a: float) -> float:
-    return math.pi - (math.pi - a) % (2.0 * math.pi)   # (-pi, pi], as :func:`~workbench.estimation.angles.wrap`
+from workbench.experiments.omni.motion import wrap_one
 
 
 @numba.njit(cache=True)
@@ -45,7 +42,7 @@ def innovations(x: np.ndarray, P: np.ndarray, off: np.ndarray, bearings: np.ndar
         dx, dy = x[o] - x[0], x[o + 1] - x[1]
         q = dx * dx + dy * dy
         hv[i, 0], hv[i, 1], hv[i, 2], hv[i, 3], hv[i, 4] = dy / q, -dx / q, -1.0, -dy / q, dx / q
-        nu[i] = _wrap(bearings[i] - (math.atan2(dy, dx) - x[2]))
+        nu[i] = wrap_one(bearings[i] - (math.atan2(dy, dx) - x[2]))
         for k in range(n):
             PH[k, i] = (P[k, 0] * hv[i, 0] + P[k, 1] * hv[i, 1] + P[k, 2] * hv[i, 2]
                         + P[k, o] * hv[i, 3] + P[k, o + 1] * hv[i, 4])
@@ -71,7 +68,7 @@ def innovations(x: np.ndarray, P: np.ndarray, off: np.ndarray, bearings: np.ndar
                 for v in range(2):
                     C[u, v] = P[o + u, o + v] + P[u, v] - P[o + u, v] - P[u, o + v]
             BC = B @ C
-            nu[i] = _wrap(nu[i] - 0.5 * (BC[0, 0] + BC[1, 1]))
+            nu[i] = wrap_one(nu[i] - 0.5 * (BC[0, 0] + BC[1, 1]))
             S[i, i] += 0.5 * (BC[0, 0] * BC[0, 0] + 2.0 * BC[0, 1] * BC[1, 0] + BC[1, 1] * BC[1, 1])
     return nu, S, PH
 

@@ -79,23 +79,14 @@ def relocate(inc: Any, e: int, lm: int) -> bool:
     reach = np.hypot(*(point - poses[ok, :2]).T)
     if not _plausible(reach, float(np.hypot(*(point - inc.points[lm]))), tolerance, inc.data.max_range):
         return False
-    agree = {(k, round(b, 12)) for (k, b), m in zip(rays, ok, strict=True) if m}
-    graph = gtsam.NonlinearFactorGraph()
-    held = set()
+    graph = gtsam.NonlinearFactorGraph()   # every factor but the landmark's bearings, then those that agree
     for i in range(inc.everything.size()):
         factor = inc.everything.at(i)
-        keys = factor.keys()
-        if len(keys) == 2 and keys[1] == L(lm):
-            ray = (gtsam.Symbol(keys[0]).index(), round(float(factor.measured().theta()), 12))
-            if not any(_same(ray, a) for a in agree):
-                continue
-            held.add(ray)
-        graph.add(factor)
-    for k, b in rays:
-        ray = (k, round(b, 12))
-        if ray in agree and not any(_same(ray, h) for h in held):
+        if not (isinstance(factor, gtsam.BearingFactor2D) and factor.keys()[1] == L(lm)):
+            graph.add(factor)
+    for (k, b), agrees in zip(rays, ok, strict=True):
+        if agrees:
             graph.add(inc.marks.factor(k, lm, b))
-            held.add(ray)
     # the data decide: the moved graph solved too, and the move kept only where it lowers the
     # truncated cost of every bearing of the map and the odometry
     try:
@@ -105,7 +96,7 @@ def relocate(inc: Any, e: int, lm: int) -> bool:
     if _cost(inc, graph, moved_to, tolerance) >= _cost(inc, inc.everything, stayed, tolerance):
         return False
     inc.everything = graph
-    left = {(k, lm) for k, b in rays if (k, round(b, 12)) not in agree}
+    left = {(k, lm) for (k, _), agrees in zip(rays, ok, strict=True) if not agrees}
     inc.rejected = {p for p in inc.rejected if p[1] != lm} | left
     inc.points[lm] = np.asarray(moved_to.atPoint2(L(lm)), float)
     inc.start = moved_to
@@ -144,12 +135,6 @@ def _plausible(reach: np.ndarray, moved: float, tolerance: float, max_range: flo
 
 REACH = 1.5
 """How far past the sensor's range (a factor) a new place may be from the poses that see it."""
-
-
-def _same(a: tuple[int, float], b: tuple[int, float]) -> bool:
-    """The same ray: one keyframe, bearings equal as angles (a factor's ``Rot2`` gives its bearing back
-    wrapped to (-pi, pi])."""
-    return a[0] == b[0] and abs(math.remainder(a[1] - b[1], 2.0 * math.pi)) < 1e-9
 
 
 def _tolerance(data: OmniData, cfg: OmniConfig) -> float:
