@@ -6,8 +6,10 @@ solve. ``benchmarks/mrclam_misreads.py`` measures both on robots 1-5."""
 import dataclasses
 import math
 
+import gtsam
 import numpy as np
 import pytest
+from gtsam.symbol_shorthand import L, X
 from launcher import DATA
 
 from workbench import api
@@ -49,7 +51,8 @@ def test_the_grown_start_regating_at_each_pass_keeps_the_basin(monkeypatch):
     plain = graph.batch(data, grown, kf)
     assert _rms(data, pruned) < 0.6 and _rms(data, plain) > 1.0, (_rms(data, pruned), _rms(data, plain))
     step_of = {int(s): e for e, s in enumerate(kf.steps)}
-    misread = {(step_of[int(data.meas_step[i])], int(data.meas_lm[i])) for i in hit if int(data.meas_step[i]) in step_of}
+    misread = {(step_of[int(data.meas_step[i])], int(data.meas_lm[i]))
+               for i in hit if int(data.meas_step[i]) in step_of}
     assert len(misread & start.rejected) > 0.5 * len(misread)
 
 
@@ -60,9 +63,6 @@ def test_the_starts_are_compared_once_regated():
     kf = graph.keyframes(data, cfg)
     est = graph.batch(data, cfg, kf)
     assert len(est.start_costs) >= 2 and est.start == min(est.start_costs, key=est.start_costs.get)
-    import gtsam
-    from gtsam.symbol_shorthand import L, X
-
     values = gtsam.Values()
     for e in range(len(kf.steps)):
         values.insert(X(e), gtsam.Pose2(*est.pose[e]))
