@@ -63,7 +63,7 @@ def batch(data: OmniData, cfg: OmniConfig, kf: Keyframes | None = None,
     kf = kf or keyframes(data, cfg)
     E = len(kf.steps)
     starts = list(starts or named_starts(data, cfg, kf))
-    solved, _ = _best_start(data, cfg, kf, starts)
+    solved = _best_start(data, cfg, kf, starts)
     settled = {i: _settle(data, cfg, kf, *one) for i, one in solved.items()}
     costs = {i: robust_cost(data, cfg, kf, one[0], one[1].inserted) for i, one in settled.items()}
     won = min(settled, key=lambda i: (costs[i], i))  # the first listed on a tie

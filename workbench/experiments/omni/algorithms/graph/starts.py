@@ -14,7 +14,7 @@ import numpy as np
 from gtsam.symbol_shorthand import L, X
 
 from workbench.estimation.metrics import chi2_quantile
-from workbench.experiments.omni.algorithms.graph.gating import gate_of, outlier_rate, robust_cost
+from workbench.experiments.omni.algorithms.graph.gating import gate_of, outlier_rate
 from workbench.experiments.omni.algorithms.graph.incremental import _Incremental
 from workbench.experiments.omni.algorithms.graph.isam2_estimator import isam2
 from workbench.experiments.omni.algorithms.graph.keyframes import Keyframes, _lm_params
@@ -163,11 +163,11 @@ def start_from(name: str, est: SlamEstimate, data: OmniData, kf: Keyframes) -> S
 
 
 def _best_start(data: OmniData, cfg: OmniConfig, kf: Keyframes, starts: list[Start | Callable[[], Start]]
-                ) -> tuple[dict[int, tuple], dict[int, float]]:
+                ) -> dict[int, tuple]:
     """LM from the starts in the order given (one given as a function is made when it is reached;
     ``starts`` then holds it) until one ends with a fit its chi-square does not
-    reject (:func:`plausible`); the rest are not solved. Returns the solved ones and their
-    :func:`robust_cost`, by index.
+    reject (:func:`plausible`); the rest are not solved. Returns the solved ones by index (the
+    batch compares them by their :func:`.gating.robust_cost` once re-gated: :func:`.batch._settle`).
 
     Why: solving from every start cost a full LM solve of the whole run each (two of a long log's
     three solves, measured), though a fit that passes its test needs no second opinion. Where it
@@ -175,7 +175,6 @@ def _best_start(data: OmniData, cfg: OmniConfig, kf: Keyframes, starts: list[Sta
     noise model), the next start is solved too and the lower cost on the data kept, as before.
     """
     solved: dict[int, tuple] = {}
-    costs: dict[int, float] = {}
     for i, start in enumerate(starts):
         if callable(start):  # made only when it is needed
             start = starts[i] = start()
@@ -183,10 +182,9 @@ def _best_start(data: OmniData, cfg: OmniConfig, kf: Keyframes, starts: list[Sta
         graph = _batch_graph(data, kf, marks, rejected)
         result = gtsam.LevenbergMarquardtOptimizer(graph, values, _lm_params(100)).optimize()
         solved[i] = (result, marks, rejected, first_seen, init_step)
-        costs[i] = robust_cost(data, cfg, kf, result, marks.inserted)
         if plausible(*fit(graph, result, len(kf.steps), int(marks.inserted.sum()))):
             break
-    return solved, costs
+    return solved
 
 
 FIT_TEST = 0.999
