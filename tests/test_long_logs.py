@@ -127,7 +127,9 @@ def test_a_jump_that_a_second_step_settles_gets_no_whole_graph_pass(monkeypatch)
     """A landmark seen again after a blind stretch turns iSAM2's heading back by 10-30 deg: a jump
     past the run-away thresholds that one more Gauss-Newton iteration leaves where it is. MRCLAM 6
     robot 3 has three such jumps and one run-away; with the check it takes one LM pass where it took
-    five, and its trajectory ends within 1 cm of the one with every pass."""
+    five, and its trajectory ends within 2 cm of the one with every pass (1.4 cm: each pass re-gates
+    the bearings at its answer, :class:`.pruned._Pruned`, so more passes leave a few more out; 1 cm
+    before they did)."""
     from workbench.experiments.omni.algorithms.graph import incremental
 
     data, cfg, kf = _mrclam(3)
@@ -136,4 +138,4 @@ def test_a_jump_that_a_second_step_settles_gets_no_whole_graph_pass(monkeypatch)
     every = graph.isam2(data, cfg, kf)
     assert checked.lm_passes < every.lm_passes
     d = np.linalg.norm(checked.smoothed[:, :2] - every.smoothed[:, :2], axis=1)
-    assert d.max() < 0.01, d.max()
+    assert d.max() < 0.02, d.max()

@@ -1,6 +1,7 @@
 """``isam2``, the estimator: :class:`.incremental._Incremental` with iSAM2 updated at every keyframe,
 read as a causal estimator (the newest pose and its marginal at each keyframe) and as a smoother
-(its whole trajectory and map at the end, and its residuals there)."""
+(its whole trajectory and map at the end, and its residuals there). With a gate on, its LM passes
+re-gate every bearing at their answer (:class:`.pruned._Pruned`)."""
 
 from __future__ import annotations
 
@@ -11,7 +12,7 @@ import numpy as np
 from gtsam.symbol_shorthand import X
 
 from workbench.experiments.omni.algorithms import residuals
-from workbench.experiments.omni.algorithms.graph.gating import gated_indices
+from workbench.experiments.omni.algorithms.graph.gating import gated_indices, outlier_rate
 from workbench.experiments.omni.algorithms.graph.incremental import _Incremental
 from workbench.experiments.omni.algorithms.graph.keyframes import Keyframes, keyframes, to_world
 from workbench.experiments.omni.algorithms.graph.landmarks import _batch_graph
@@ -22,6 +23,7 @@ from workbench.experiments.omni.algorithms.graph.marginals import (
     _point_of,
     read_map,
 )
+from workbench.experiments.omni.algorithms.graph.pruned import _Pruned
 from workbench.experiments.omni.config import OmniConfig
 from workbench.experiments.omni.estimate import SlamEstimate
 from workbench.experiments.omni.scenario import OmniData
@@ -38,7 +40,8 @@ def isam2(data: OmniData, cfg: OmniConfig, kf: Keyframes | None = None, map_ever
     last); Monte Carlo runs read it once, at the end.
     """
     kf = kf or keyframes(data, cfg)
-    inc = _Incremental(data, cfg, kf)
+    gated = cfg.nis_gate > 0.0 or outlier_rate(cfg) > 0.0
+    inc = (_Pruned if gated else _Incremental)(data, cfg, kf)
     n_lm, E = len(data.landmarks), len(kf.steps)
     poses = np.empty((E, 3))
     covs = np.empty((E, 3, 3))

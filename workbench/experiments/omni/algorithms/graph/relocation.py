@@ -36,12 +36,13 @@ from workbench.experiments.omni.scenario import OmniData
 
 
 def due(inc: Any, e: int, lm: int) -> bool:
-    """Whether landmark ``lm``, in the graph, is due for a look at keyframe ``e``: at least
-    :data:`AGREEING` of its bearings left out since the last look, twice as many after each look
-    that moved nothing (so a landmark whose bearings the gate leaves out for another reason, a
-    trajectory off, is looked at a logarithmic number of times), and the looks' LM solves so far
-    within :data:`LOOK_BUDGET` graphs of the log's length."""
-    return inc.left_since.get(lm, 0) >= inc.look_after.get(lm, AGREEING) and inc.look_work <= LOOK_BUDGET * (e + 1)
+    """Whether landmark ``lm`` is in the graph (a pass can take it out: :class:`.pruned._Pruned`) and
+    due for a look at keyframe ``e``: at least :data:`AGREEING` of its bearings left out since the
+    last look, twice as many after each look that moved nothing (so a landmark whose bearings the
+    gate leaves out for another reason, a trajectory off, is looked at a logarithmic number of
+    times), and the looks' LM solves so far within :data:`LOOK_BUDGET` graphs of the log's length."""
+    return (lm in inc.points and inc.left_since.get(lm, 0) >= inc.look_after.get(lm, AGREEING)
+            and inc.look_work <= LOOK_BUDGET * (e + 1))
 
 
 LOOK_BUDGET = 40.0
