@@ -27,9 +27,7 @@ from workbench.experiments.omni.algorithms.graph.keyframes import (
     to_world,
 )
 from workbench.experiments.omni.algorithms.graph.landmarks import _Landmarks
-from workbench.experiments.omni.algorithms.graph.marginals import (
-    _marginal,
-)
+from workbench.experiments.omni.algorithms.graph.marginals import _marginal, pass_marginals
 from workbench.experiments.omni.config import OmniConfig
 from workbench.experiments.omni.scenario import OmniData
 
@@ -328,20 +326,6 @@ class _Incremental:
         r2, s = _bearing_test(pose, self.chain_cov, point, marginal(), bearing, sigma)
         return r2 <= self.threshold(s) * s
 
-    def _marginals(self, result: gtsam.Values, e: int) -> None:
-        """The newest pose's and the landmarks' marginals at an LM pass's answer (the gate's
-        start); kept as they were if GTSAM cannot compute them."""
-        if not math.isfinite(self.gate):
-            return
-        try:
-            marginals = gtsam.Marginals(self.everything, result)
-            heading = np.array([result.atPose2(X(e)).theta()])
-            self.chain_cov = to_world(marginals.marginalCovariance(X(e))[None], heading)[0]
-            for lm in self.points:
-                self.point_cov[lm] = marginals.marginalCovariance(L(lm))
-        except RuntimeError:
-            pass
-
     def _update(self, graph: gtsam.NonlinearFactorGraph, values: gtsam.Values) -> bool:
         """``isam.update`` and the newest pose's estimate; False if GTSAM throws (an
         indeterminate system; the solver is then rebuilt by an LM pass)."""
@@ -406,7 +390,7 @@ class _Incremental:
             self.chain_cov = to_world(cov[None], np.array([self.chain.theta()]))[0]
             self.point_read.clear()
         else:
-            self._marginals(result, e)
+            pass_marginals(self, result, e)
         return True
 
     FINAL_SOLVES = 3

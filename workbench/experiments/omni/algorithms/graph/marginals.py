@@ -4,11 +4,15 @@ of them every ``MAP_FULL``-th reading and at the end)."""
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
+from typing import Any
 
 import gtsam
 import numpy as np
-from gtsam.symbol_shorthand import L
+from gtsam.symbol_shorthand import L, X
+
+from workbench.experiments.omni.algorithms.graph.keyframes import to_world
 
 JUMP_POSITION = 2.0
 
@@ -55,3 +59,18 @@ def _marginal(isam: gtsam.ISAM2 | None, key: int, dim: int) -> np.ndarray:
         return np.full((dim, dim), np.nan)
     # a variable the data hardly constrain (a landmark on near-parallel rays) can read inf
     return cov if np.isfinite(cov).all() else np.full((dim, dim), np.nan)
+
+
+def pass_marginals(inc: Any, result: gtsam.Values, e: int) -> None:
+    """The newest pose's and the landmarks' marginals at an LM pass's answer (the gate's start in
+    :class:`.incremental._Incremental`); kept as they were if GTSAM cannot compute them."""
+    if not math.isfinite(inc.gate):
+        return
+    try:
+        marginals = gtsam.Marginals(inc.everything, result)
+        heading = np.array([result.atPose2(X(e)).theta()])
+        inc.chain_cov = to_world(marginals.marginalCovariance(X(e))[None], heading)[0]
+        for lm in inc.points:
+            inc.point_cov[lm] = marginals.marginalCovariance(L(lm))
+    except RuntimeError:
+        pass
