@@ -89,3 +89,16 @@ def test_isam2_regating_at_its_passes_keeps_the_basin(monkeypatch):
     monkeypatch.setattr(isam2_estimator, "_Pruned", incremental._Incremental)
     plain = smoothed_rms()
     assert pruned < 0.3 and plain > 3.0, (pruned, plain)
+
+
+def test_a_landmark_placed_beyond_the_sensor_s_reach_is_left_out_of_the_map():
+    """Hand-made: a 6 m sensor, poses at (0, 0) and (1, 0); landmark 0 placed 5 m from the first,
+    landmark 1 9.5 m from the nearest pose that saw it (past 1.5 x 6 = 9 m), landmark 2 1e27 m off
+    (as iSAM2's map read on MRCLAM with misreads), landmark 3 not placed."""
+    from types import SimpleNamespace
+
+    poses = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0]])
+    points = np.array([[5.0, 0.0], [10.5, 0.0], [1e27, -1e27], [np.nan, np.nan]])
+    rays = {0: [(0, 0.0)], 1: [(0, 0.0), (1, 0.0)], 2: [(1, 0.1)], 3: [(0, 0.2)]}
+    far = isam2_estimator.out_of_reach(SimpleNamespace(max_range=6.0), rays, points, poses)
+    assert far == [1, 2]
