@@ -486,7 +486,7 @@ def _misread(data, start: float, count: int = 4):
 
 @pytest.mark.parametrize("lm_every, start", [(0.0, "isam2"), (20.0, "grown")])
 def test_the_gate_keeps_misread_barcodes_out_of_the_graph(lm_every, start):
-    """Four misread bearings pull the ungated smoother metres off the truth; with the gate
+    """Four misread bearings pull the ungated smoother off the truth (6-40x the clean run's error); with the gate
     (``nis_gate`` 0.99, as the MRCLAM scenario has it) the answer stays within about a centimetre of
     the one without the misreads, and the gate leaves out about 1 % of the good bearings. The
     gate works as well following iSAM2 (no LM passes, the batch from iSAM2's answer: the MRCLAM
@@ -503,7 +503,10 @@ def test_the_gate_keeps_misread_barcodes_out_of_the_graph(lm_every, start):
         e = evaluate.pose_errors(data.truth[est.steps], est.pose)
         return float(np.sqrt(np.mean(e[:, 0] ** 2 + e[:, 1] ** 2)))
 
-    assert rms(clean) < 0.2 and rms(ungated) > 1.0  # measured: 0.07 m and 3.0 m
+    # measured: 0.13 m and 0.74 m following iSAM2 (9.0 m before iSAM2's map left out the landmarks the
+    # misreads had placed beyond the sensor's reach, :func:`.isam2_estimator.out_of_reach`, which the
+    # batch's start from it then triangulates afresh); 0.13 and 3.0 m with the grown start
+    assert rms(clean) < 0.2 and rms(ungated) > 0.5
     assert np.max(np.hypot(*(gated.pose[:, :2] - clean.pose[:, :2]).T)) < 0.02  # 1.0 cm with the grown start pruned
     assert gated.gated >= clean.gated + 4 - 1  # the four misreads (one may have been gated anyway)
     assert clean.gated < 0.03 * len(data.meas_lm)
