@@ -85,10 +85,10 @@ def isam2(data: OmniData, cfg: OmniConfig, kf: Keyframes | None = None, map_ever
 def out_of_reach(data: OmniData, rays: dict[int, list[tuple[int, float]]], points: np.ndarray,
                  poses: np.ndarray) -> list[int]:
     """The landmarks of a final map ``points (N, 2)`` placed farther than :data:`.relocation.REACH`
-    times the sensor's range (``max_range``) from every pose ``poses (E, 3)`` whose ray of it was
-    taken (``rays``: each landmark's ``(keyframe, bearing)``): a place the sensor could not have
-    seen it from: the data do not fix where it is. Why: where iSAM2 is given up,
-    or its Gauss-Newton steps run a landmark off along near-parallel rays, its map read 68 m to
+    times the sensor's range (``max_range``) from every pose ``poses (E, 3)`` that saw it (``rays``:
+    each landmark's ``(keyframe, bearing)``, taken or left out): a place the sensor could not have
+    seen it from, so the data do not fix where it is. Why: where iSAM2 is given up, or its
+    Gauss-Newton steps run a landmark off along near-parallel rays, its map read 68 m to
     4e27 m after alignment on 3 of 20 MRCLAM 6 logs with 1-2 % misread ids
     (``benchmarks/mrclam_misreads.py``); a map is then the landmarks it placed, and it says which it
     could not, rather than give those places as an answer (issue 36). The rule is relocation's for
