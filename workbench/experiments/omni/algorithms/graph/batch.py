@@ -14,8 +14,8 @@ from workbench.experiments.omni.algorithms import residuals
 from workbench.experiments.omni.algorithms.graph.gating import (
     _bearing_test,
     gate_of,
+    gated,
     gated_indices,
-    outlier_rate,
     robust_cost,
 )
 from workbench.experiments.omni.algorithms.graph.keyframes import Keyframes, _lm_params, _pose, keyframes, to_world
@@ -93,14 +93,14 @@ def _settle(data: OmniData, cfg: OmniConfig, kf: Keyframes, result: gtsam.Values
     iSAM2's, the grown graph's and dead reckoning's, and 529 once re-gated against their
     2,463-3,374 (0.14 m against 2.0-2.6 m; ``benchmarks/mrclam_misreads.py``)."""
     E = len(kf.steps)
-    gated = cfg.nis_gate > 0.0 or outlier_rate(cfg) > 0.0
-    least = AGREEING if gated else 2
+    gating_on = gated(cfg)
+    least = AGREEING if gating_on else 2
     # with a gate, a landmark two rays alone place leaves the map (its two bearings fit it exactly
     # whatever they are, so the rest of the answer is the same without it): two rays always meet
     result = _drop_unseen(kf, marks, rejected, result, least)
     graph = _batch_graph(data, kf, marks, rejected)
     covs, lm_cov = _batch_marginals(graph, result, E, marks.inserted)
-    for _ in range(REGATE_ROUNDS if gated else 0):
+    for _ in range(REGATE_ROUNDS if gating_on else 0):
         again = _regate(data, cfg, kf, result, covs, lm_cov, marks.inserted)
         rays = _rays(kf, marks)
         smoothed = np.array([_pose(result.atPose2(X(e))) for e in range(E)])  # held through the round

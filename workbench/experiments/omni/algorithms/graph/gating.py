@@ -27,6 +27,11 @@ def outlier_rate(cfg: OmniConfig) -> float:
     return float(cfg.assume_outlier_rate or 0.0)
 
 
+def gated(cfg: OmniConfig) -> bool:
+    """Whether the graphs gate their bearings: a chi-square gate (``nis_gate``) or an outlier model."""
+    return cfg.nis_gate > 0.0 or outlier_rate(cfg) > 0.0
+
+
 def gate_of(cfg: OmniConfig) -> Callable[[np.ndarray | float], np.ndarray | float]:
     """The normalised squared bearing residual beyond which the graphs leave a bearing of
     variance ``s`` out, as a function of ``s``: the outlier model's even odds

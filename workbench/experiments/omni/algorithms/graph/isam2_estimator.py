@@ -12,7 +12,7 @@ import numpy as np
 from gtsam.symbol_shorthand import X
 
 from workbench.experiments.omni.algorithms import residuals
-from workbench.experiments.omni.algorithms.graph.gating import gated_indices, outlier_rate
+from workbench.experiments.omni.algorithms.graph.gating import gated, gated_indices
 from workbench.experiments.omni.algorithms.graph.incremental import _Incremental
 from workbench.experiments.omni.algorithms.graph.keyframes import Keyframes, keyframes, to_world
 from workbench.experiments.omni.algorithms.graph.landmarks import _batch_graph
@@ -41,8 +41,8 @@ def isam2(data: OmniData, cfg: OmniConfig, kf: Keyframes | None = None, map_ever
     last); Monte Carlo runs read it once, at the end.
     """
     kf = kf or keyframes(data, cfg)
-    gated = cfg.nis_gate > 0.0 or outlier_rate(cfg) > 0.0
-    inc = (_Pruned if gated else _Incremental)(data, cfg, kf)
+    gating_on = gated(cfg)
+    inc = (_Pruned if gating_on else _Incremental)(data, cfg, kf)
     n_lm, E = len(data.landmarks), len(kf.steps)
     poses = np.empty((E, 3))
     covs = np.empty((E, 3, 3))

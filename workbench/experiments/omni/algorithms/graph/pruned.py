@@ -31,9 +31,9 @@ class _Pruned(_Incremental):
     iSAM2 (which follows its own estimate and passes only where an update runs away) gets the same
     passes: a run-away there is most often a misread taken in, and a pass that keeps it rebuilds
     iSAM2 in the basin the misread pulled it to. Measured with the same benchmark (2026-12-06, the
-    old and the new code in one sitting): iSAM2's causal position within 0.5 m in 4 of 10 logs at 1 %
-    (2 before) and 1 of 10 at 2 % (0 before); its maps, which read up to 1e82 m off where a landmark
-    ran to infinity, 0.04-1.6 m on 14 of the 20. iSAM2 rebuilt twice per pass (before and after the
+    old and the new code in one sitting, with :data:`.incremental.PASS_BUDGET` 20): iSAM2's smoothed
+    answer within 0.5 m in 9 of 10 logs at 1 % (4 before) and 7 of 10 at 2 % (1 before), its causal
+    position in 4 and 1 (2 and 0). iSAM2 rebuilt twice per pass (before and after the
     re-gating) costs a second LM solve and rebuild at each run-away, which
     :data:`.incremental.PASS_BUDGET` bounds as before."""
 

@@ -14,7 +14,7 @@ import numpy as np
 from gtsam.symbol_shorthand import L, X
 
 from workbench.estimation.metrics import chi2_quantile
-from workbench.experiments.omni.algorithms.graph.gating import gate_of, outlier_rate
+from workbench.experiments.omni.algorithms.graph.gating import gate_of, gated
 from workbench.experiments.omni.algorithms.graph.incremental import _Incremental
 from workbench.experiments.omni.algorithms.graph.isam2_estimator import isam2
 from workbench.experiments.omni.algorithms.graph.keyframes import Keyframes, _lm_params
@@ -61,8 +61,8 @@ def own_start(data: OmniData, cfg: OmniConfig, kf: Keyframes, name: str | None =
     name = name or ("grown" if cfg.lm_every > 0.0 else "odometry")
     if name == "grown":
         grown = cfg if cfg.lm_every > 0.0 else dataclasses.replace(cfg, lm_every=GROWN_EVERY)
-        gated = cfg.nis_gate > 0.0 or outlier_rate(cfg) > 0.0
-        inc = (_Pruned if gated else _Incremental)(data, grown, kf, solver=False)
+        gating_on = gated(cfg)
+        inc = (_Pruned if gating_on else _Incremental)(data, grown, kf, solver=False)
         for e in range(len(kf.steps)):
             inc.step(e)
         return Start("grown", *inc.estimate(), inc.rejected)
@@ -160,7 +160,7 @@ def _prepare(data: OmniData, cfg: OmniConfig, kf: Keyframes, start: Start):
     n_lm, E = len(data.landmarks), len(kf.steps)
     mapped = np.isfinite(start.landmarks).all(axis=1)
     threshold = gate_of(cfg)
-    gated = cfg.nis_gate > 0.0 or outlier_rate(cfg) > 0.0
+    gating_on = gated(cfg)
     marks = _Landmarks.of(data, cfg)
     values = gtsam.Values()
     for e in range(E):
@@ -177,7 +177,7 @@ def _prepare(data: OmniData, cfg: OmniConfig, kf: Keyframes, start: Start):
                 continue
             preset = start.landmarks[lm] if mapped[lm] else None
             tolerance = math.inf
-            if preset is None and gated and mapped.any():
+            if preset is None and gating_on and mapped.any():
                 s2 = 2.0 * float(sigma) ** 2
                 tolerance = math.sqrt(max(float(threshold(s2)), 0.0) * s2)
             _, point = marks.observe(e, lm, b, lambda k: start.poses[k], preset, tolerance, sigma=float(sigma))
