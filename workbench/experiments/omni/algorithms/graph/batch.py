@@ -100,7 +100,13 @@ def _settle(data: OmniData, cfg: OmniConfig, kf: Keyframes, result: gtsam.Values
     result = _drop_unseen(kf, marks, rejected, result, least)
     graph = _batch_graph(data, kf, marks, rejected)
     covs, lm_cov = _batch_marginals(graph, result, E, marks.inserted)
-    for _ in range(REGATE_ROUNDS if gating_on else 0):
+    best: tuple | None = None
+    for round_ in range(REGATE_ROUNDS + 1 if gating_on else 0):
+        cost = robust_cost(data, cfg, kf, result, marks.inserted)
+        if best is None or cost < best[0]:
+            best = (cost, gtsam.Values(result), marks.inserted.copy(), rejected, graph, covs, lm_cov)
+        if round_ == REGATE_ROUNDS:
+            break
         again = _regate(data, cfg, kf, result, covs, lm_cov, marks.inserted)
         rays = _rays(kf, marks)
         smoothed = np.array([_pose(result.atPose2(X(e))) for e in range(E)])  # held through the round
@@ -114,6 +120,8 @@ def _settle(data: OmniData, cfg: OmniConfig, kf: Keyframes, result: gtsam.Values
         graph = _batch_graph(data, kf, marks, rejected)
         result = gtsam.LevenbergMarquardtOptimizer(graph, result, _lm_params(100)).optimize()
         covs, lm_cov = _batch_marginals(graph, result, E, marks.inserted)
+    if best is not None:  # the round the data's cost likes best (a round can cost more than it mends)
+        _, result, marks.inserted[:], rejected, graph, covs, lm_cov = best
     return result, marks, rejected, first_seen, init_step, graph, lm_cov, covs
 
 
