@@ -15,7 +15,7 @@ from launcher import DATA
 
 from workbench import api
 from workbench.experiments.omni.algorithms import graph
-from workbench.experiments.omni.algorithms.graph import incremental, isam2_estimator, starts
+from workbench.experiments.omni.algorithms.graph import gnc, incremental, isam2_estimator, starts
 from workbench.experiments.omni.algorithms.graph.gating import robust_cost
 from workbench.experiments.omni.run import make_data
 
@@ -57,12 +57,25 @@ def test_the_grown_start_regating_at_each_pass_keeps_the_basin(monkeypatch):
     assert len(misread & start.rejected) > 0.5 * len(misread)
 
 
-def test_the_starts_are_compared_once_regated():
+@pytest.fixture(scope="module")
+def refined():
+    """Robot 1, 38 misreads (seed 1): iSAM2's answer (run once), the batch from it and graduated
+    non-convexity (``gnc``), and the misread bearings ``(keyframe, landmark)``."""
+    cfg, data, hit = _misread(1, 0.02, 1)
+    kf = graph.keyframes(data, cfg)
+    est = graph.isam2(data, cfg, kf)
+    named = dataclasses.replace(cfg, batch_starts="isam2,gnc")
+    batch = graph.batch(data, named, kf, starts.named_starts(data, named, kf, {"isam2": lambda: est}))
+    step_of = {int(s): e for e, s in enumerate(kf.steps)}
+    misread = {(step_of[int(data.meas_step[i])], int(data.meas_lm[i]))
+               for i in hit if int(data.meas_step[i]) in step_of}
+    return cfg, data, kf, est, batch, misread
+
+
+def test_the_starts_are_compared_once_regated(refined):
     """The answer the batch keeps is the start of lowest cost once re-gated, and its reported cost
     is that answer's: the truncated cost on every bearing of its final map and the odometry."""
-    cfg, data, _ = _misread(3, 0.01, 0)   # three starts solved (robot 1 at 2 % seed 1, before iSAM2 re-gated, two)
-    kf = graph.keyframes(data, cfg)
-    est = graph.batch(data, cfg, kf)
+    cfg, data, kf, _, est, _ = refined   # two starts solved: iSAM2's and gnc's
     assert len(est.start_costs) >= 2 and est.start == min(est.start_costs, key=est.start_costs.get)
     values = gtsam.Values()
     for e in range(len(kf.steps)):
@@ -94,11 +107,31 @@ def test_isam2_regating_at_its_passes_keeps_the_basin(monkeypatch):
 def test_a_landmark_placed_beyond_the_sensor_s_reach_is_left_out_of_the_map():
     """Hand-made: a 6 m sensor, poses at (0, 0) and (1, 0); landmark 0 placed 5 m from the first,
     landmark 1 9.5 m from the nearest pose that saw it (past 1.5 x 6 = 9 m), landmark 2 1e27 m off
-    (as iSAM2's map read on MRCLAM with misreads), landmark 3 not placed."""
+    (as iSAM2's map read on MRCLAM with misreads), landmark 3 not placed, landmark 4 run off to
+    infinity (robot 5 at 2 % seed 1 overflowed)."""
     from types import SimpleNamespace
 
     poses = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0]])
-    points = np.array([[5.0, 0.0], [10.5, 0.0], [1e27, -1e27], [np.nan, np.nan]])
-    rays = {0: [(0, 0.0)], 1: [(0, 0.0), (1, 0.0)], 2: [(1, 0.1)], 3: [(0, 0.2)]}
+    points = np.array([[5.0, 0.0], [10.5, 0.0], [1e27, -1e27], [np.nan, np.nan], [np.inf, 0.0]])
+    rays = {0: [(0, 0.0)], 1: [(0, 0.0), (1, 0.0)], 2: [(1, 0.1)], 3: [(0, 0.2)], 4: [(0, 0.0)]}
     far = isam2_estimator.out_of_reach(SimpleNamespace(max_range=6.0), rays, points, poses)
-    assert far == [1, 2]
+    assert far == [1, 2, 4]
+
+
+def test_gnc_refines_a_start_whose_fit_passes_with_misreads_in_it(refined):
+    """iSAM2's start passes its fit test (the misreads it kept fit it: 21 of the 28 at keyframes left
+    out, 0.26 m off; measured). Graduated non-convexity from its solve is solved whatever that fit,
+    leaves 25 of the 28 out and ends 0.14 m off; the batch keeps it through its re-gating (0.15 m,
+    cost 776 against iSAM2's start's 802, settled at 0.49 m). Not a default start: on
+    ``benchmarks/mrclam_misreads.py`` it made two logs worse (docs/long-logs.md)."""
+    cfg, data, kf, est, batch, misread = refined
+    assert batch.start == "gnc" and batch.start_costs["gnc"] < batch.start_costs["isam2"], batch.start_costs
+    assert _rms(data, batch) < 0.25, _rms(data, batch)
+    start = starts.start_from("isam2", est, data, kf)
+    solved = starts._best_start(data, cfg, kf, [start])
+    assert starts.plausible(*starts.fit(graph._batch_graph(data, kf, *solved[0][1:3]), solved[0][0],
+                                        len(kf.steps), int(solved[0][1].inserted.sum())))
+    poses, _, rejected = gnc.refine(data, cfg, kf, *solved[0])
+    rms = lambda p: math.sqrt(np.mean(np.sum((p[:, :2] - data.truth[kf.steps, :2]) ** 2, axis=1)))  # noqa: E731
+    assert len(misread & rejected) >= len(misread & start.rejected) + 3, (len(misread & rejected), len(misread))
+    assert rms(poses) < 0.2 and rms(start.poses) > 0.2, (rms(poses), rms(start.poses))

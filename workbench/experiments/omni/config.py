@@ -28,7 +28,7 @@ IMAGE_SIGMA_BEARING_DEG = 0.3
 # periodic whole-graph LM passes (``lm_every`` 0; issue 36: they made a log's cost grow as its
 # square, 4.4x for a log twice as long): its runaways came from a gate and held rays that
 # followed a drifting chain, and a runaway still gets one damped pass (:class:`.graph._Incremental`).
-BATCH_STARTS = ("odometry", "grown", "isam2", "ekf")
+BATCH_STARTS = ("odometry", "grown", "isam2", "ekf", "gnc")
 """Where gtsam-batch may start (:func:`.graph.batch` keeps the start of lowest cost on the data)."""
 ODOMETRY_BETWEEN = ("switch", "hold")
 """How a real log's velocity command is read between two logged rows (:mod:`.real`)."""
@@ -205,6 +205,8 @@ class OmniConfig(Config):
         require(starts and set(starts) <= set(BATCH_STARTS) and len(set(starts)) == len(starts),
                 f"--batch-starts must name one or more of {', '.join(BATCH_STARTS)}, each once "
                 f"(got {self.batch_starts!r})")
+        require(starts[0] != "gnc", f"--batch-starts: gnc refines the start before it, so it cannot come first "
+                f"(got {self.batch_starts!r})")
         require(self.odometry_between in ODOMETRY_BETWEEN,
                 f"--odometry-between must be one of {', '.join(ODOMETRY_BETWEEN)} (got {self.odometry_between!r})")
         return self
@@ -268,7 +270,8 @@ OPTIONS: tuple[Option, ...] = (
            switch="--second-order/--first-order"),
     Option("batch_starts", "gtsam-batch: solve from these in turn while the last fit fails its chi-square test, "
            "keep the lowest cost on the data: odometry, grown (the graph grown with an LM pass every --lm-every s, "
-           "20 where that is 0), isam2, ekf (their answers).", str),
+           "20 where that is 0), isam2, ekf (their answers), gnc (graduated non-convexity from the start before "
+           "it).", str),
     Option("huber", "GTSAM: Huber threshold on bearing factors (0 = off)."),
     Option("from_images", "paper: render round images and estimate from their bearings.", bool,
            switch="--from-images/--from-bearings"),

@@ -64,7 +64,8 @@ def batch(data: OmniData, cfg: OmniConfig, kf: Keyframes | None = None,
     E = len(kf.steps)
     starts = list(starts or named_starts(data, cfg, kf))
     solved = _best_start(data, cfg, kf, starts)
-    settled = {i: _settle(data, cfg, kf, *one) for i, one in solved.items()}
+    settled = {i: _settle(data, cfg, kf, *one, kept_out=starts[i].rejected if starts[i].name == "gnc" else set())
+               for i, one in solved.items()}
     costs = {i: robust_cost(data, cfg, kf, one[0], one[1].inserted) for i, one in settled.items()}
     won = min(settled, key=lambda i: (costs[i], i))  # the first listed on a tie
     result, marks, rejected, first_seen, init_step, graph, lm_cov, covs = settled[won]
@@ -81,7 +82,8 @@ def batch(data: OmniData, cfg: OmniConfig, kf: Keyframes | None = None,
 
 
 def _settle(data: OmniData, cfg: OmniConfig, kf: Keyframes, result: gtsam.Values, marks: _Landmarks,
-            rejected: set[tuple[int, int]], first_seen: np.ndarray, init_step: np.ndarray) -> tuple:
+            rejected: set[tuple[int, int]], first_seen: np.ndarray, init_step: np.ndarray,
+            kept_out: set[tuple[int, int]] = frozenset()) -> tuple:
     """One start's solve re-gated against its own answer until the verdict stands (at most
     ``REGATE_ROUNDS`` rounds; :func:`batch`): ``(result, marks, rejected, first_seen, init_step,
     graph, lm_cov, covs)``.
@@ -91,7 +93,10 @@ def _settle(data: OmniData, cfg: OmniConfig, kf: Keyframes, result: gtsam.Values
     that left them out with many good bearings: on MRCLAM 6 robot 1 with 2 % of the barcodes
     misread, the batch from the truth cost 15,153 at its first solve against 3,340-4,500 for
     iSAM2's, the grown graph's and dead reckoning's, and 529 once re-gated against their
-    2,463-3,374 (0.14 m against 2.0-2.6 m; ``benchmarks/mrclam_misreads.py``)."""
+    2,463-3,374 (0.14 m against 2.0-2.6 m; ``benchmarks/mrclam_misreads.py``).
+
+    ``kept_out``: bearings no round takes back (``gnc``'s verdict, reached by the whole graph's
+    evidence: re-gated at the marginals, which the misreads widen, they came back in, docs/long-logs.md)."""
     E = len(kf.steps)
     gating_on = gated(cfg)
     least = AGREEING if gating_on else 2
@@ -100,14 +105,8 @@ def _settle(data: OmniData, cfg: OmniConfig, kf: Keyframes, result: gtsam.Values
     result = _drop_unseen(kf, marks, rejected, result, least)
     graph = _batch_graph(data, kf, marks, rejected)
     covs, lm_cov = _batch_marginals(graph, result, E, marks.inserted)
-    best: tuple | None = None
-    for round_ in range(REGATE_ROUNDS + 1 if gating_on else 0):
-        cost = robust_cost(data, cfg, kf, result, marks.inserted)
-        if best is None or cost < best[0]:
-            best = (cost, gtsam.Values(result), marks.inserted.copy(), rejected, graph, covs, lm_cov)
-        if round_ == REGATE_ROUNDS:
-            break
-        again = _regate(data, cfg, kf, result, covs, lm_cov, marks.inserted)
+    for _ in range(REGATE_ROUNDS if gating_on else 0):
+        again = _regate(data, cfg, kf, result, covs, lm_cov, marks.inserted) | set(kept_out)
         rays = _rays(kf, marks)
         smoothed = np.array([_pose(result.atPose2(X(e))) for e in range(E)])  # held through the round
         again, moved = _relocate(data, cfg, rays, marks, again, result, smoothed, _contradicted(kf, marks, result))
@@ -120,8 +119,6 @@ def _settle(data: OmniData, cfg: OmniConfig, kf: Keyframes, result: gtsam.Values
         graph = _batch_graph(data, kf, marks, rejected)
         result = gtsam.LevenbergMarquardtOptimizer(graph, result, _lm_params(100)).optimize()
         covs, lm_cov = _batch_marginals(graph, result, E, marks.inserted)
-    if best is not None:  # the round the data's cost likes best (a round can cost more than it mends)
-        _, result, marks.inserted[:], rejected, graph, covs, lm_cov = best
     return result, marks, rejected, first_seen, init_step, graph, lm_cov, covs
 
 
