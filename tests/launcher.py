@@ -79,7 +79,9 @@ def kernels() -> dict[str, dict[str, str]]:
     """Environments that make this processor do its arithmetic as others would (the BLAS kernel
     OpenBLAS would pick there, numpy's SIMD loops turned down to theirs, numba compiled for them):
     ``avx2`` a machine without AVX-512 (Haswell kernels), ``sandybridge`` one without AVX2/FMA,
-    ``prescott`` an SSE3-era one, ``skylakex`` an AVX-512 one, each where this processor can run it."""
+    ``prescott`` an SSE3-era one, ``skylakex`` an AVX-512 one, each where this processor can run it and
+    its arithmetic is not this processor's own already (OpenBLAS picks Haswell's kernels on AMD Zen,
+    whose numpy has no AVX-512 loops: there ``avx2`` would replay as the recording machine itself)."""
     from workbench.recording import machine
 
     runnable = machine.runnable_kernels()
@@ -89,9 +91,10 @@ def kernels() -> dict[str, dict[str, str]]:
     out = {"prescott": {"OPENBLAS_CORETYPE": "Prescott", "NUMBA_CPU_NAME": "generic", **off}}
     if "Sandybridge" in runnable:
         out["sandybridge"] = {"OPENBLAS_CORETYPE": "Sandybridge", "NUMBA_CPU_NAME": "sandybridge", **off}
-    if "Haswell" in runnable:
+    native = machine._numpy_kernel(machine.fingerprint()["blas"])
+    if "Haswell" in runnable and (native != "Haswell" or wide):   # else it is this processor's own (AMD Zen)
         out["avx2"] = {"OPENBLAS_CORETYPE": "Haswell", "NUMBA_CPU_NAME": "haswell",
                        **({"NPY_DISABLE_CPU_FEATURES": " ".join(wide)} if wide else {})}
-    if "SkylakeX" in runnable:
+    if "SkylakeX" in runnable and native != "SkylakeX":
         out["skylakex"] = {"OPENBLAS_CORETYPE": "SkylakeX"}
     return out
