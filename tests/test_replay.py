@@ -71,7 +71,9 @@ def test_replay_on_another_processor_reproduces_to_floating_point(recorded, name
     r = wb("replay", str(recorded[name]), env=env)
     said = r.stdout + r.stderr
     assert r.returncode == 0, said
-    assert "reproduces to floating point: all " in said or "reproduces, but for estimators that amplify" in said, said
+    # the same bits where the other kernels happen to give them (omni under Prescott with numpy's AVX2 loops off)
+    assert any(w in said for w in ("reproduces to floating point: all ", "reproduces, but for estimators that amplify",
+                                   "reproduces: the same bits, all ")), said
     assert "recorded on another machine: " in said and "overrides: " in said, said
     if "reproduces to floating point" in said:  # the largest difference is given, and is within the tolerance
         largest = float(said.split("(the largest, ")[1].split(",")[0])
