@@ -64,7 +64,7 @@ def batch(data: OmniData, cfg: OmniConfig, kf: Keyframes | None = None,
     E = len(kf.steps)
     starts = list(starts or named_starts(data, cfg, kf))
     solved = _best_start(data, cfg, kf, starts)
-    settled = {i: _settle(data, cfg, kf, *one, kept_out=starts[i].rejected if starts[i].name == "gnc" else set())
+    settled = {i: _settle(data, cfg, kf, *one, kept_out=starts[i].rejected if starts[i].final else set())
                for i, one in solved.items()}
     costs = {i: robust_cost(data, cfg, kf, one[0], one[1].inserted) for i, one in settled.items()}
     won = min(settled, key=lambda i: (costs[i], i))  # the first listed on a tie

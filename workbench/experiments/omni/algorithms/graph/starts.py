@@ -42,12 +42,25 @@ def fit(graph: gtsam.NonlinearFactorGraph, result: gtsam.Values, poses: int, lan
 class Start:
     """Where the batch starts: ``poses (E, 3)`` at the keyframes, ``landmarks (N, 2)`` (NaN:
     triangulate from the poses), and the bearings ``(keyframe, landmark)`` that whatever made
-    the start left out (its gate; the batch leaves them out too until it re-gates)."""
+    the start left out (its gate; the batch leaves them out too until it re-gates; ``final``: through
+    the re-gating too, a verdict reached over the whole graph: ``gnc``'s)."""
 
     name: str
     poses: np.ndarray
     landmarks: np.ndarray
     rejected: set[tuple[int, int]]
+    final: bool = False
+
+
+@dataclass(frozen=True)
+class Refinement:
+    """A start made from the start solved just before it (``gnc``): ``make(solved)``, ``solved``
+    that start's ``(result, marks, rejected, ...)`` as :func:`_best_start` holds it."""
+
+    make: Callable[[tuple], Start]
+
+    def __call__(self, solved: tuple) -> Start:
+        return self.make(solved)
 
 
 GROWN_EVERY = 20.0
@@ -72,7 +85,7 @@ def own_start(data: OmniData, cfg: OmniConfig, kf: Keyframes, name: str | None =
 
 
 def named_starts(data: OmniData, cfg: OmniConfig, kf: Keyframes,
-                 made: dict[str, Callable[[], SlamEstimate]] | None = None) -> list[Callable[[], Start]]:
+                 made: dict[str, Callable[[], SlamEstimate]] | None = None) -> list[Callable[[], Start] | Refinement]:
     """The starts ``--batch-starts`` names, in order, each as a function that makes it (the batch
     makes only those it solves): the batch's own (:func:`own_start`) and other estimators' answers
     (:func:`start_from`), those made by ``made[name]()`` where given (a run's shared estimate),
@@ -87,14 +100,11 @@ def named_starts(data: OmniData, cfg: OmniConfig, kf: Keyframes,
 
         return ekf.run(data, cfg, "clone", "ekf", False)
 
-    def make(name: str) -> Callable[[], Start]:
+    def make(name: str) -> Callable[[], Start] | Refinement:
         if name == "gnc":
             from workbench.experiments.omni.algorithms.graph import gnc
 
-            def refined(solved: tuple) -> Start:
-                return Start("gnc", *gnc.refine(data, cfg, kf, *solved))
-            refined.refines = True  # type: ignore[attr-defined]  # made from the start solved before it
-            return refined
+            return Refinement(lambda solved: Start("gnc", *gnc.refine(data, cfg, kf, *solved), final=True))
         if name in ("isam2", "ekf"):
             return lambda: start_from(name, run(name), data, kf)
         return lambda: own_start(data, cfg, kf, name)
@@ -118,8 +128,8 @@ def start_from(name: str, est: SlamEstimate, data: OmniData, kf: Keyframes) -> S
     return Start(name, poses.copy(), est.final_map.copy(), rejected)
 
 
-def _best_start(data: OmniData, cfg: OmniConfig, kf: Keyframes, starts: list[Start | Callable[[], Start]]
-                ) -> dict[int, tuple]:
+def _best_start(data: OmniData, cfg: OmniConfig, kf: Keyframes,
+                starts: list[Start | Callable[[], Start] | Refinement]) -> dict[int, tuple]:
     """LM from the starts in the order given (one given as a function is made when it is reached;
     ``starts`` then holds it) until one ends with a fit its chi-square does not
     reject (:func:`plausible`); the rest are not solved, but for a ``gnc`` right after the last one
@@ -136,7 +146,7 @@ def _best_start(data: OmniData, cfg: OmniConfig, kf: Keyframes, starts: list[Sta
     solved: dict[int, tuple] = {}
     passed = False
     for i, start in enumerate(starts):
-        refines = getattr(start, "refines", False)  # gnc: from the start solved just before it
+        refines = isinstance(start, Refinement)  # gnc: from the start solved just before it
         if passed and not (refines and i - 1 in solved):
             break
         if callable(start):  # made only when it is needed
