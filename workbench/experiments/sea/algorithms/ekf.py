@@ -23,13 +23,12 @@ the nonlinearity's alone; that no observer noise gave 3.91 was the hint.
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 from workbench.estimation import kalman
 from workbench.estimation.consistency import Innovations
 from workbench.experiments.sea import geometry, observer
+from workbench.experiments.sea.algorithms import ekf_recursion
 from workbench.experiments.sea.config import SeaConfig
 from workbench.experiments.sea.estimate import Estimate
 from workbench.experiments.sea.scenario import SeaData
@@ -55,80 +54,37 @@ def initial_state(data: SeaData, k: int, prior_speed: float,
     return np.concatenate([xy, [0.0, 0.0]]), P
 
 
-_PI, _TWO_PI = math.pi, 2.0 * math.pi
-
-
-def _measure(ex: float, ey: float, course: float, height: float) -> tuple[float, float, np.ndarray]:
-    """Azimuth and elevation (1)-(2) of the relative position ``(ex, ey)`` and their Jacobian
-    ``d(alpha, beta)/d(x, y)``: :func:`.geometry.angles` and :func:`.geometry.angle_jacobian` for
-    one point, in scalars."""
-    c, s = math.cos(course), math.sin(course)
-    k2 = ex * ex + ey * ey
-    k = math.sqrt(k2)
-    g = -height / ((k2 + height * height) * k)
-    J = np.array([[-ey / k2, ex / k2], [g * ex, g * ey]])
-    return math.atan2(-ex * s + ey * c, ex * c + ey * s), math.atan2(height, k), J
-
-
 def estimate(data: SeaData, cfg: SeaConfig) -> Estimate:
     """Filter the run; returns positions, covariances, NIS-gated flags and l-step forecasts.
 
-    The measurement model is evaluated in scalars (:func:`_measure`: (1)-(2) and their Jacobian,
-    ``geometry.angles`` and ``angle_jacobian`` written out for one point), and the update in the
-    Joseph form with the 2x2 innovation covariance inverted in closed form: the same equations as
-    :func:`.kalman.update` (``tests/test_sea_math.py`` holds them equal), a third of the time."""
+    The recursion is compiled (:func:`.ekf_recursion.recursion`: the measurement model (1)-(2) and
+    its Jacobian in scalars, the update in the Joseph form with the 2x2 innovation covariance
+    inverted in closed form): the same equations as :func:`.kalman.update`
+    (``tests/test_sea_math.py`` holds them equal to rounding)."""
     T, dt = data.steps, data.dt
     F = kalman.cv_transition(dt)
     Q = kalman.cv_noise_discrete(dt, data.sigma_acc)
     gated = cfg.ekf_gate > 0
     # the chi-square quantile of 2 degrees of freedom in closed form: -2 ln(1 - p)
     gate = -2.0 * np.log1p(-cfg.ekf_gate)
-    X = np.full((T, 4), np.nan)
-    Ps = np.full((T, 4, 4), np.nan)
-    rows: list[tuple[float, np.ndarray, np.ndarray, np.ndarray, bool]] = []  # the innovations: (t, nu, S, R, kept)
     cam = observer.camera(data)
-    fold = float(cam.fold)
-    R_angles = np.diag([data.sigma_alpha**2, data.sigma_beta**2])
-    path, course, h = cam.path.tolist(), np.asarray(data.course, float).tolist(), float(data.height)
-    a_meas, b_meas = data.alpha_meas.tolist(), data.beta_meas.tolist()
-    seen, t = data.seen.tolist(), data.t.tolist()
-    eye = np.eye(4)
-    x = P = None
-    for k in range(T):
-        if x is not None:
-            x = F @ x
-            P = F @ P @ F.T + Q
-            P = 0.5 * (P + P.T)
-        if seen[k]:
-            if x is None:
-                x, P = initial_state(data, k, cfg.prior_speed, cam)
-            else:
-                ox, oy = path[k]
-                ha, hb, J = _measure(x[0] - ox, x[1] - oy, course[k], h)
-                R = R_angles if fold == 0.0 else R_angles + fold * (J @ J.T)
-                nu = np.array([_PI - (_PI - (a_meas[k] - ha)) % _TWO_PI, b_meas[k] - hb])  # wrapped as angles.wrap
-                PHt = P[:, :2] @ J.T                      # P H' with H = [J, 0]
-                S = J @ PHt[:2] + R
-                det = S[0, 0] * S[1, 1] - S[0, 1] * S[1, 0]
-                Si = np.array([[S[1, 1], -S[0, 1]], [-S[1, 0], S[0, 0]]]) / det
-                if not gated or nu @ Si @ nu <= gate:
-                    K = PHt @ Si
-                    ikh = eye.copy()
-                    ikh[:, :2] -= K @ J
-                    x = x + K @ nu
-                    P = ikh @ P @ ikh.T + K @ R @ K.T
-                    P = 0.5 * (P + P.T)
-                    rows.append((t[k], nu, S, R, True))
-                else:  # gated: the innovation it was judged on is kept for the diagnosis
-                    rows.append((t[k], nu, S, R, False))
-        if x is not None:
-            X[k], Ps[k] = x, P
+    seen = np.asarray(data.seen, bool)
+    if seen.any():
+        first = int(np.flatnonzero(seen)[0])
+        x0, P0 = initial_state(data, first, cfg.prior_speed, cam)
+        X, Ps, updated, nu, S, R, kept = ekf_recursion.recursion(
+            np.asarray(x0, float), np.asarray(P0, float), first, F, Q, np.ascontiguousarray(cam.path, float),
+            np.asarray(data.course, float), float(data.height), np.asarray(data.alpha_meas, float),
+            np.asarray(data.beta_meas, float), seen, float(data.sigma_alpha) ** 2, float(data.sigma_beta) ** 2,
+            float(cam.fold), gated, float(gate))
+    else:
+        X, Ps, updated = np.full((T, 4), np.nan), np.full((T, 4, 4), np.nan), np.zeros(T, bool)
+        nu, S, R, kept = np.zeros((T, 2)), np.zeros((T, 2, 2)), np.zeros((T, 2, 2)), np.zeros(T, bool)
     # l-step forecasts: F^l x (positions only)
     L = cfg.horizon
     Fl = np.stack([np.linalg.matrix_power(F, l)[:2] for l in range(1, L + 1)])  # (L, 2, 4)
     forecast = np.einsum("lij,tj->tli", Fl, X)
-    innovations = Innovations(np.array([r[0] for r in rows]), np.array([r[1] for r in rows]).reshape(-1, 2),
-                              np.array([r[2] for r in rows]).reshape(-1, 2, 2), np.array([r[4] for r in rows], bool),
-                              np.array([r[3] for r in rows]).reshape(-1, 2, 2), cfg.ekf_gate if gated else None)
+    innovations = Innovations(np.asarray(data.t, float)[updated], nu[updated], S[updated], kept[updated],
+                              R[updated], cfg.ekf_gate if gated else None)
     return observer.relative("ekf", data, cam, X[:, :2].copy(), np.arange(T), covariance=Ps[:, :2, :2].copy(),
                              state_cov=Ps, velocity=X[:, 2:].copy(), forecast=forecast, innovations=innovations)
