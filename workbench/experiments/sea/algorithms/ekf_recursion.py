@@ -7,7 +7,8 @@ noise search evaluate about a hundred times a run (``sea.resample.factors``); in
 a 720-step run took 38 ms, all of it call overhead on 4x4 matrices (measured, cProfile: 8.7 of the
 11.4 s of two bootstrapped paper runs). Explicit loops, no ``fastmath`` and no BLAS call: every
 product is summed in the same order on every processor (a replay's numbers do not depend on the
-BLAS kernel picked; ``workbench.recording.machine``).
+BLAS kernel picked; ``workbench.recording.machine``). The cost: compiling it takes about 9 s, once
+per machine and processor (numba's cache, ``__pycache__`` beside this file).
 """
 
 from __future__ import annotations
@@ -83,10 +84,12 @@ def recursion(x0: np.ndarray, P0: np.ndarray, first: int, F: np.ndarray, Q: np.n
             k2 = ex * ex + ey * ey
             kk = math.sqrt(k2)
             g = -height / ((k2 + height * height) * kk)
-            J = np.array([[-ey / k2, ex / k2], [g * ex, g * ey]])
+            J = np.empty((2, 2))
+            J[0, 0], J[0, 1], J[1, 0], J[1, 1] = -ey / k2, ex / k2, g * ex, g * ey
             ha = math.atan2(-ex * s + ey * c, ex * c + ey * s)
             hb = math.atan2(height, kk)
-            R = np.array([[sigma_alpha2, 0.0], [0.0, sigma_beta2]])
+            R = np.zeros((2, 2))
+            R[0, 0], R[1, 1] = sigma_alpha2, sigma_beta2
             if fold != 0.0:
                 for i in range(2):
                     for j in range(2):
@@ -102,7 +105,8 @@ def recursion(x0: np.ndarray, P0: np.ndarray, first: int, F: np.ndarray, Q: np.n
                 for j in range(2):
                     S[i, j] = J[i, 0] * PHt[0, j] + J[i, 1] * PHt[1, j] + R[i, j]
             det = S[0, 0] * S[1, 1] - S[0, 1] * S[1, 0]
-            Si = np.array([[S[1, 1] / det, -S[0, 1] / det], [-S[1, 0] / det, S[0, 0] / det]])
+            Si = np.empty((2, 2))
+            Si[0, 0], Si[0, 1], Si[1, 0], Si[1, 1] = S[1, 1] / det, -S[0, 1] / det, -S[1, 0] / det, S[0, 0] / det
             d = (nu0 * (Si[0, 0] * nu0 + Si[0, 1] * nu1) + nu1 * (Si[1, 0] * nu0 + Si[1, 1] * nu1))
             updated[k] = True
             nus[k, 0], nus[k, 1] = nu0, nu1
