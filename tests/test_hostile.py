@@ -73,7 +73,7 @@ EXAMPLES = [
     ("omni --kappa inf", "--kappa"),
     ("omni --relin-threshold inf", "--relin-threshold"),
     ("omni --image-noise 1e300", "--image-noise"),
-    ("omni --batch-starts gnc,isam2", "gnc refines the start before it"),
+    ("omni --batch-starts gnc,isam2", "gnc refines the cheapest start solved before it"),
     ("sea --scenario ''", "--scenario '' is empty"),  # a typo, not "the default" (issue 27)
     ("omni --scenario ''", "--scenario '' is empty"),
     ("terrain --scenario ' '", "--scenario ' ' is empty"),

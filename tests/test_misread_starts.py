@@ -135,3 +135,24 @@ def test_gnc_refines_a_start_whose_fit_passes_with_misreads_in_it(refined):
     rms = lambda p: math.sqrt(np.mean(np.sum((p[:, :2] - data.truth[kf.steps, :2]) ** 2, axis=1)))  # noqa: E731
     assert len(misread & rejected) >= len(misread & start.rejected) + 3, (len(misread & rejected), len(misread))
     assert rms(poses) < 0.2 and rms(start.poses) > 0.2, (rms(poses), rms(start.poses))
+
+
+def test_gnc_refines_the_cheapest_start_solved_before_it(refined, monkeypatch):
+    """Every start solved (their fits all taken as failed): ``gnc`` listed after a mirrored start
+    refines iSAM2's, listed before it and cheaper on the data, not the one just before it; and the
+    mirrored start costs more by the data's truncated cost (it is a wrong basin)."""
+    cfg, data, kf, est, _, _ = refined
+    good = starts.start_from("isam2", est, data, kf)
+    mirrored = starts.Start("mirrored", good.poses * np.array([1.0, -1.0, -1.0]),
+                            good.landmarks * np.array([1.0, -1.0]), set())
+    got: list[tuple] = []
+
+    def make(solved: tuple) -> starts.Start:
+        got.append(solved)
+        return starts.Start("gnc", good.poses, good.landmarks, set(), final=True)
+
+    monkeypatch.setattr(starts, "plausible", lambda chi2, dof: False)
+    solved = starts._best_start(data, cfg, kf, [good, mirrored, starts.Refinement(make)])
+    assert sorted(solved) == [0, 1, 2] and len(got) == 1 and got[0] is solved[0]
+    cost = [robust_cost(data, cfg, kf, solved[i][0], solved[i][1].inserted) for i in (0, 1)]
+    assert cost[0] < cost[1], cost

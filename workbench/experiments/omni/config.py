@@ -205,7 +205,8 @@ class OmniConfig(Config):
         require(starts and set(starts) <= set(BATCH_STARTS) and len(set(starts)) == len(starts),
                 f"--batch-starts must name one or more of {', '.join(BATCH_STARTS)}, each once "
                 f"(got {self.batch_starts!r})")
-        require(starts[0] != "gnc", f"--batch-starts: gnc refines the start before it, so it cannot come first "
+        require(starts[0] != "gnc", "--batch-starts: gnc refines the cheapest start solved before it, so it cannot "
+                f"come first "
                 f"(got {self.batch_starts!r})")
         require(self.odometry_between in ODOMETRY_BETWEEN,
                 f"--odometry-between must be one of {', '.join(ODOMETRY_BETWEEN)} (got {self.odometry_between!r})")
@@ -270,8 +271,8 @@ OPTIONS: tuple[Option, ...] = (
            switch="--second-order/--first-order"),
     Option("batch_starts", "gtsam-batch: solve from these in turn while the last fit fails its chi-square test, "
            "keep the lowest cost on the data: odometry, grown (the graph grown with an LM pass every --lm-every s, "
-           "20 where that is 0), isam2, ekf (their answers), gnc (graduated non-convexity from the start before "
-           "it).", str),
+           "20 where that is 0), isam2, ekf (their answers), gnc (graduated non-convexity from the cheapest "
+           "start solved before it).", str),
     Option("huber", "GTSAM: Huber threshold on bearing factors (0 = off)."),
     Option("from_images", "paper: render round images and estimate from their bearings.", bool,
            switch="--from-images/--from-bearings"),
