@@ -22,23 +22,22 @@ _PI, _TWO_PI = math.pi, 2.0 * math.pi
 
 
 @numba.njit(cache=True)
-def _sandwich(A: np.ndarray, P: np.ndarray) -> np.ndarray:
-    """``A P A'`` for 4x4 ``A`` and ``P``."""
-    AP = np.zeros((4, 4))
-    for i in range(4):
-        for j in range(4):
-            acc = 0.0
-            for k in range(4):
-                acc += A[i, k] * P[k, j]
-            AP[i, j] = acc
+def _product(A: np.ndarray, B: np.ndarray) -> np.ndarray:
+    """``A B`` for 4x4 ``A`` and ``B``, each entry summed over ``k`` in order."""
     M = np.zeros((4, 4))
     for i in range(4):
         for j in range(4):
             acc = 0.0
             for k in range(4):
-                acc += AP[i, k] * A[j, k]
+                acc += A[i, k] * B[k, j]
             M[i, j] = acc
     return M
+
+
+@numba.njit(cache=True)
+def _sandwich(A: np.ndarray, P: np.ndarray) -> np.ndarray:
+    """``A P A'`` for 4x4 ``A`` and ``P``."""
+    return _product(_product(A, P), A.T)
 
 
 @numba.njit(cache=True)
