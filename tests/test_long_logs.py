@@ -99,9 +99,24 @@ def test_isam2_s_passes_at_run_aways_cost_at_most_a_budget_of_whole_solves(monke
     lands where it lands at the scenario's noise."""
     from workbench.experiments.omni.algorithms.graph import incremental
 
+    data, cfg, kf = _mrclam(1)
+    seconds: dict[str, list[float]] = {"plain": [], "run-away": []}
+    for _ in range(3):  # interleaved, best of three, this process's CPU time: the machine's load is not counted
+        for name, jump in (("plain", (incremental.JUMP_POSITION, incremental.JUMP_HEADING)),
+                           ("run-away", (1e-3, math.radians(0.01)))):
+            with monkeypatch.context() as m:
+                m.setattr(incremental, "JUMP_POSITION", jump[0])
+                m.setattr(incremental, "JUMP_HEADING", jump[1])
+                t0 = time.process_time()
+                graph.isam2(data, cfg, kf)
+                seconds[name].append(time.process_time() - t0)
+    # an iSAM2 that runs away at every update costs at most a small multiple of one that does not
+    # (0.7x here, as it gives up; 11x before the budget): a ratio in one process, not seconds, which a
+    # loaded CI machine stretches (4.06 s against a bound of 4 there)
+    ratio = min(seconds["run-away"]) / min(seconds["plain"])
+    assert ratio < 3.0, (seconds, ratio)
     monkeypatch.setattr(incremental, "JUMP_POSITION", 1e-3)
     monkeypatch.setattr(incremental, "JUMP_HEADING", math.radians(0.01))
-    data, cfg, kf = _mrclam(1)
     inc = incremental._Incremental(data, cfg, kf)
     for e in range(len(kf.steps)):
         inc.step(e)
@@ -111,7 +126,7 @@ def test_isam2_s_passes_at_run_aways_cost_at_most_a_budget_of_whole_solves(monke
         warnings.simplefilter("ignore")
         run = api.run("omni", "mrclam", data=str(DATA / "mrclam6"), robot=1, estimators=["isam2", "gtsam-batch"])
     got = run.metrics["estimators"]
-    assert got["isam2"]["failures"] >= 1 and got["isam2"]["seconds"] < 4.0
+    assert got["isam2"]["failures"] >= 1
     # the diagnosis names the give-up first (its time, the keyframe's), and never calls it consistent
     d = got["isam2"]["diagnosis"]
     at = data.t[kf.steps[inc.gave_up]] - data.t[0]
