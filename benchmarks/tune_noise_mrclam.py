@@ -21,7 +21,7 @@ import tempfile
 from pathlib import Path
 
 import workbench
-from workbench.core import selftune
+from workbench.core import selftune, tune_report
 from workbench.core.registry import get
 
 ESTIMATORS = ["ekf", "isam2", "gtsam-batch"]
@@ -52,7 +52,7 @@ def main() -> None:
             cfg = exp.validate(exp.configure(scenario="mrclam", data=blind, robot=robot))
             _, rep = selftune.tune_noise(exp, cfg)
         print(f"robot {robot}:")
-        for line in selftune.lines(rep):
+        for line in tune_report.lines(rep):
             print("  " + line)
         filt = {f"assume_{k}": v for k, v in rep["told"].items()}   # what --tune-noise tells the estimators
         sm = rep.get("smoother") or {}

@@ -335,3 +335,34 @@ def test_a_daemonic_process_runs_the_jobs_itself():
     got = queue.get(timeout=120)
     proc.join(30)
     assert got == ("ran", 3)
+
+
+def test_the_slam_filters_rows_held_make_its_likelihood_smooth():
+    """omni's EKF initialises a landmark sooner or later with the noise it is told, so its likelihood
+    jumps (units of NLL) and reads rough; with the landmarks' initialisations held where one run made
+    them (:class:`~workbench.experiments.omni.algorithms.ekf.HeldInit`) the rows are the same at every
+    noise, the run that made them comes again bit for bit, and the NLL is a smooth bowl: its
+    curvature at twice the Hessian's step within :data:`ROUGH` of the step's, along every value."""
+    from workbench.core import objective, selftune
+    from workbench.core.registry import get
+
+    exp = get("omni")
+    cfg = exp.validate(exp.configure(seed=2, duration=120.0))   # the paper's bicycle, 120 s
+    data = exp.dataset(cfg, 0)
+    filt, start, _ = exp.parts.tunable(data, cfg)
+    names = list(start)
+    x = np.log([start[n] for n in names])
+    free, held = (objective._Objective(exp, data, cfg, filt, names) for _ in range(2))
+    free.ref = free.run(x)
+    held.ref = held.hold_at(x)
+    assert np.array_equal(free.ref.nll, held.ref.nll, equal_nan=True) and held.held is not None
+    told = x + np.log(0.5) * (np.array(names) == "sigma_bearing_deg")
+    moved, kept = free.run(told), held.run(told)
+    assert not np.array_equal(moved.used, free.ref.used)      # unheld, the rows change with the noise
+    assert np.array_equal(kept.used, held.ref.used) and np.array_equal(kept.t, held.ref.t)
+    rough = {}
+    for name, obj in (("free", free), ("held", held)):
+        f = lambda z, obj=obj: obj.value(z, None)  # noqa: E731
+        H, _ = selftune.hessian(f, x)
+        rough[name] = selftune.rough(f, x, H).tolist()
+    assert rough["held"] == [False] * len(names) and any(rough["free"]), rough

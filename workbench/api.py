@@ -206,9 +206,9 @@ def run(experiment: str | Experiment, scenario: str | None = None, *, config: An
             stats["recording"] = str(out_path)
         lines = exp.export(first, stats, extras, force)
         if tuned is not None:
-            from workbench.core import selftune
+            from workbench.core import tune_report
 
-            lines = selftune.lines(tuned) + lines
+            lines = tune_report.lines(tuned) + lines
         if metrics_path is not None:
             stream.write_text_atomic(metrics_path, strict_json(stats), force)
         if live is not None:  # the outputs are written: only now wait (at most LIVE_FLUSH) for the viewer

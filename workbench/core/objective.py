@@ -5,6 +5,7 @@ the runs a search needs all at once shared by forked processes (:meth:`_Objectiv
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import math
 import multiprocessing
@@ -29,6 +30,7 @@ class Terms:
     t: np.ndarray
     nll: np.ndarray
     used: np.ndarray
+    held: Any = None   # a context manager in which the filter makes these rows again (its package's ``hold_rows``)
 
     def charged(self, part: tuple[float, float] | None = None) -> float:
         """The NLL of the measurements in the time span ``part`` (``(after, up to)``; all: None),
@@ -46,19 +48,23 @@ class Terms:
         return int(np.count_nonzero(self.within(part)))
 
 
-def terms(exp: Any, data: Any, cfg: Any, filt: str, values: dict[str, float]) -> Terms | None:
-    """The filter's terms on ``data`` told ``values`` (config fields without ``assume_``); None if it failed."""
+def terms(exp: Any, data: Any, cfg: Any, filt: str, values: dict[str, float], held: Any = None) -> Terms | None:
+    """The filter's terms on ``data`` told ``values`` (config fields without ``assume_``), its rows
+    those ``held`` makes where given (a :attr:`Terms.held`); None if it failed."""
     told = dataclasses.replace(cfg, **{f"assume_{k}": float(v) for k, v in values.items()})
-    estimates, failed = exp.estimate(data, told, [filt])
+    with held if held is not None else contextlib.nullcontext():
+        estimates, failed = exp.estimate(data, told, [filt])
     if filt in failed:
         return None
     innov = getattr(estimates[filt], "innovations", None)
     if innov is None:
         raise WorkbenchError(f"--tune-noise: {filt} reports no innovations on this data")
+    hold = getattr(exp.parts, "hold_rows", None)
+    rows = held if held is not None else hold(estimates[filt]) if hold is not None else None
     if innov.outlier:   # a contaminated model: every measurement with an innovation is its term
         nll = innov.mixture_nll()
-        return Terms(innov.t, nll, np.isfinite(nll))
-    return Terms(innov.t, innov.nll(), innov.used & innov.valid)
+        return Terms(innov.t, nll, np.isfinite(nll), rows)
+    return Terms(innov.t, innov.nll(), innov.used & innov.valid, rows)
 
 
 class _Objective:
@@ -71,19 +77,44 @@ class _Objective:
     alone), so the part's NLL is its charged mean per row times the part's rows at the start
     values (``ref``; from the refinement on, at the first part's answer, where the data's rows are
     nearer what the noise they carry makes): the same data's count at every point of a search, the
-    sum itself where the rows do not change (a Kalman filter's)."""
+    sum itself where the rows do not change (a Kalman filter's).
+
+    Where the experiment can hold a filter's rows (its package's ``hold_rows``: omni's EKF, its
+    landmarks initialised where one run initialised them, :class:`~workbench.experiments.omni.
+    algorithms.ekf.HeldInit`), :meth:`hold_at` holds those the filter makes at a point for every run
+    after: the likelihood is then that of the same rows at every noise, smooth, with no jumps for a
+    search or a curvature to misread."""
 
     def __init__(self, exp: Any, data: Any, cfg: Any, filt: str, names: list[str]):
         self.exp, self.data, self.cfg, self.filt, self.names = exp, data, cfg, filt, names
         self.cache: dict[tuple, Terms | None] = {}
         self.ref: Terms | None = None
+        self.held: Any = None
+        self.made = 0   # filter runs made, over every hold
 
     def run(self, x: np.ndarray) -> Terms | None:
         key = tuple(np.round(np.asarray(x, float), 12))
         if key not in self.cache:
+            self.made += 1
             self.cache[key] = terms(self.exp, self.data, self.cfg, self.filt,
-                                    dict(zip(self.names, np.exp(key), strict=True)))
+                                    dict(zip(self.names, np.exp(key), strict=True)), self.held)
         return self.cache[key]
+
+    @property
+    def holds(self) -> bool:
+        """Whether the experiment holds a filter's rows (:meth:`hold_at`)."""
+        return getattr(self.exp.parts, "hold_rows", None) is not None
+
+    def hold_at(self, x: np.ndarray) -> Terms | None:
+        """The filter's run at ``x`` with the rows it makes there, and those rows held for every
+        run from now on (the cache emptied but for this run: made again with its own rows held it is
+        the same run). Where the experiment holds no rows, :meth:`run`."""
+        if not self.holds:
+            return self.run(x)
+        self.held, self.cache = None, {}
+        got = self.run(x)
+        self.held = None if got is None else got.held
+        return got
 
     def prefetch(self, points: list[np.ndarray]) -> None:
         """The filter runs at ``points`` not yet cached, at once (:meth:`map`; each run is
@@ -109,6 +140,7 @@ class _Objective:
         finally:
             _FORKED = None
         for _, runs in done:
+            self.made += len(runs)
             for k, got in runs.items():
                 self.cache.setdefault(k, got)
         return [out for out, _ in done]

@@ -92,6 +92,9 @@ class Parts:
         grid_values: ``(name, values, scenario, fixed) -> (values, lines)``, a sweep's values expanded.
         write_log: ``(data, folder, force) -> paths``, the dataset in the open log format (``--export-data``).
         tunable, components: what ``--tune-noise`` tunes, and its groups (:mod:`workbench.core.selftune`).
+        hold_rows: ``estimate -> context manager`` in which the tuned filter makes that estimate's
+            rows again whatever noise it is told (omni's EKF: its landmarks' initialisations),
+            where its rows change with the noise (:class:`workbench.core.objective._Objective`).
         resample, bootstrap_nees: the parametric bootstrap (:mod:`workbench.metrics.bootstrap`)
             and the metric it reads.
 
@@ -120,6 +123,7 @@ class Parts:
     write_log: Callable | None = None
     tunable: Callable | None = None
     components: Callable | None = None
+    hold_rows: Callable | None = None
     resample: Callable | None = None
     bootstrap_nees: str | None = None
     summarise: Callable | None = None

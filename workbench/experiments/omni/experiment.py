@@ -56,7 +56,8 @@ class Omni(Experiment):
         return parts.declare(
             self.name, make_data=run.make_data, check=estimate.check, estimators=estimators.TABLE,
             metrics=metrics.METRICS, assumed=run.assumed, result_type=run.RunResult, run_once=run.run_once,
-            write_log=run.write_log, tunable=run.tunable, components=run.components, resample=resample.resample,
+            write_log=run.write_log, tunable=run.tunable, components=run.components, hold_rows=run.hold_rows,
+            resample=resample.resample,
             bootstrap_nees=metrics.BOOTSTRAP_NEES, summarise=evaluate.summarise,
             statistics=evaluate.statistics, report=report.table, table_columns=metrics.TABLE,
             bounds=metrics.BOUNDS, renamed=metrics.RENAMED, noise_groups=metrics.NOISE_GROUPS,

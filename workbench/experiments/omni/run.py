@@ -17,7 +17,9 @@ import numpy as np
 from workbench.core import experiment as contract
 from workbench.core.estimator import Estimator
 from workbench.errors import require
+from workbench.experiments.omni.algorithms.ekf import HeldInit
 from workbench.experiments.omni.config import OmniConfig
+from workbench.experiments.omni.estimate import SlamEstimate
 from workbench.experiments.omni.scenario import OmniData, keyframe_steps, simulate
 
 
@@ -116,6 +118,12 @@ def tunable(data: OmniData, cfg: OmniConfig) -> tuple[str, dict[str, float], dic
     else:
         left["outlier_rate"] = "a simulation's bearings are Gaussian: no outlier model (--assume-outlier-rate adds one)"
     return "ekf", values, left
+
+
+def hold_rows(estimate: SlamEstimate) -> HeldInit:
+    """The EKF's rows of ``estimate`` held (:class:`~.algorithms.ekf.HeldInit`: its landmarks
+    initialised where it initialised them), for ``--tune-noise``'s likelihood at other noises."""
+    return HeldInit(estimate.init_step)
 
 
 ODOMETRY = ("odometry_scale", "sigma_v", "sigma_gamma_deg", "sigma_w_deg")

@@ -58,6 +58,43 @@ from workbench.experiments.omni.scenario import OmniData
 
 AUGMENTATIONS = ("paper", "clone")
 
+_HELD: np.ndarray | None = None
+"""Per landmark, the step at which :func:`run` initialises it (-1: never), whatever its gates say,
+while a :class:`HeldInit` is entered; None: the gates decide."""
+
+
+class HeldInit:
+    """:func:`run`'s landmarks initialised at the steps ``init_step`` (another run's: its
+    ``SlamEstimate.init_step``) and at no other, while entered (reusable; a module global, not a
+    context variable, so that a thread an estimator timeout starts and a forked process see it too).
+
+    Why: ``--tune-noise`` compares the filter's likelihood at many noises, and a SLAM filter's rows
+    change with the noise it is told (a landmark the UT's gate passes a step sooner or later; the
+    bearings spent on it have no innovation), so its likelihood jumps by about a unit and the
+    search and the curvature read the jumps as slopes (:mod:`workbench.core.selftune`). With the
+    initialisations held, the likelihood is that of the same rows at every noise, conditional on
+    where the landmarks entered, as a likelihood conditional on a data association is: smooth in the
+    noise. Run with the steps it made itself, the filter gives the same estimate bit for bit."""
+
+    def __init__(self, init_step: np.ndarray):
+        self.init_step = np.asarray(init_step, int).copy()
+        self._before: list[np.ndarray | None] = []
+
+    def __eq__(self, other: object) -> bool:
+        return isinstance(other, HeldInit) and np.array_equal(self.init_step, other.init_step)
+
+    __hash__ = None  # type: ignore[assignment]
+
+    def __enter__(self) -> HeldInit:
+        global _HELD
+        self._before.append(_HELD)
+        _HELD = self.init_step
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        global _HELD
+        _HELD = self._before.pop()
+
 
 class BearingEkf:
     """The filter's state and its four operations: predict, update, start, initialise."""
@@ -241,12 +278,16 @@ class BearingEkf:
             self._drop_clone(sight["offset"])
 
     def try_initialise(self, lm: int, bearing: float, step: int,
-                       accept: Callable[[np.ndarray, np.ndarray], bool] | None = None, r2: float | None = None
-                       ) -> bool:
+                       accept: Callable[[np.ndarray, np.ndarray], bool] | None = None, r2: float | None = None,
+                       force: bool | None = None) -> bool:
         """Triangulate from the first sighting and this one; augment the state if the gate passes
-        (and ``accept(mean, P_ll)``, a caller's own test of the candidate landmark, if given)."""
+        (and ``accept(mean, P_ll)``, a caller's own test of the candidate landmark, if given).
+        ``force``: True augments whatever the gates say (where the triangulation is finite), False
+        does not try (:class:`HeldInit`)."""
         cfg, sight = self.cfg, self.pending[lm]
         sight["last"] = step
+        if force is False:
+            return False
         r2 = self.r if r2 is None else r2
         if self.mode == "clone":
             o = sight["offset"]
@@ -258,7 +299,7 @@ class BearingEkf:
             mu = np.concatenate([sight["pose"], self.x[:3], [sight["bearing"], bearing]])
             cov = np.diag(np.concatenate([sight["var"], np.diag(self.P[:3, :3]), [0.0, 0.0]]))
         cov[6, 6], cov[7, 7] = sight.get("r2", r2), r2
-        if not self.trace and triangulation.parallax(mu) < math.radians(cfg.min_parallax_deg):
+        if not self.trace and not force and triangulation.parallax(mu) < math.radians(cfg.min_parallax_deg):
             return False   # rejected whatever the UT says (both gates need the parallax): not pushed through it
         att = triangulation.attempt(mu, cov, cfg.skew_gate, math.radians(cfg.min_parallax_deg), cfg.kappa)
         accepted, mean = att.accepted, att.mean
@@ -269,6 +310,8 @@ class BearingEkf:
             mean = point[0]
         if self.trace:
             self.attempts.append((step, lm, att.points, accepted))
+        if force:
+            accepted = bool(np.isfinite(mean).all())
         if not accepted:
             return False
         if self.mode == "clone":
@@ -286,6 +329,8 @@ class BearingEkf:
             cross = G[:, 3:6] @ self.P[:3, :]
             p_ll = G @ cov @ G.T if self.linear else att.cov
         if accept is not None and not accept(mean, p_ll):
+            return False
+        if force and not np.isfinite(p_ll).all():
             return False
         self._augment(lm, step, mean, cross, p_ll)
         return True
@@ -317,6 +362,7 @@ def run(data: OmniData, cfg: OmniConfig, augmentation: str, name: str, trace: bo
     map_mean = np.full((len(epochs), N, 2), np.nan)
     map_cov = np.full((len(epochs), N, 2, 2), np.nan)
     drop_steps = cfg.drop_after
+    held = _HELD
     last = 0
     for e, (step, idx) in enumerate(epochs):
         if step > last:
@@ -333,7 +379,8 @@ def run(data: OmniData, cfg: OmniConfig, augmentation: str, name: str, trace: bo
                 f.first_seen[lm] = step
             own = {} if r2 is None else {"r2": float(r2)}  # (each bearing's own variance, where the log gives it)
             if lm in f.pending:
-                f.try_initialise(lm, float(b), step, **own)
+                force = None if held is None else bool(held[lm] == step)
+                f.try_initialise(lm, float(b), step, **own, force=force)
             else:
                 f.start(lm, float(b), step, **own)
         for lm in [k for k, s in f.pending.items() if now - data.t[s["last"]] > drop_steps]:
