@@ -114,7 +114,7 @@ ROUGH = 2.0            # the curvature at twice the step off by more than this f
 Z95 = optimum.Z95     # the standard normal's 97.5 % point (one constant, here and in :mod:`.optimum`)
 REACH = math.log(30.0)  # the coordinate sweeps reach a factor of 30 either way
 SWEEPS = 2
-HOLD_ROUNDS = 3         # joint searches at most, each with the rows the last one ended at held
+HOLD_ROUNDS = 2         # joint searches at most, the second with the rows the first ended at held
 SWEEP_XATOL = 0.1       # the sweeps stop at 10 %: the joint search refines
 METHODS = ("nelder-mead", "lbfgs")
 METHOD = "nelder-mead"
@@ -331,7 +331,8 @@ def tune_noise(exp: Any, cfg: Any, method: str | None = None) -> tuple[Any, dict
         obj.hold_at(x1)
         if r and obj.held == before:
             break
-        x1, _, conv1 = _minimise(lambda x: obj.value(x, fit), x1, method, MAX_EVALUATIONS, STEP / 2)
+        x1, _, conv1 = _minimise(lambda x: obj.value(x, fit), x1, method, MAX_EVALUATIONS // (1 + r),
+                                 STEP / (2 + 2 * r))   # a refinement after the first: half the budget and the simplex
     if obj.value(x1, fit) > obj.value(x0, fit):
         x1 = x0
     # 2. the whole log at the first part's answer (its rows held): its curvature, what the data
