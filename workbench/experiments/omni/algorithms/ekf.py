@@ -379,8 +379,9 @@ def run(data: OmniData, cfg: OmniConfig, augmentation: str, name: str, trace: bo
                 f.first_seen[lm] = step
             own = {} if r2 is None else {"r2": float(r2)}  # (each bearing's own variance, where the log gives it)
             if lm in f.pending:
-                force = None if held is None else bool(held[lm] == step)
-                f.try_initialise(lm, float(b), step, **own, force=force)
+                if held is not None:   # (the keyword only where held: a wrapper of the method's own needs no new one)
+                    own["force"] = bool(held[lm] == step)
+                f.try_initialise(lm, float(b), step, **own)
             else:
                 f.start(lm, float(b), step, **own)
         for lm in [k for k, s in f.pending.items() if now - data.t[s["last"]] > drop_steps]:
