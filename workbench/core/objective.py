@@ -107,13 +107,18 @@ class _Objective:
 
     def hold_at(self, x: np.ndarray) -> Terms | None:
         """The filter's run at ``x`` with the rows it makes there, and those rows held for every
-        run from now on (the cache emptied but for this run: made again with its own rows held it is
-        the same run). Where the experiment holds no rows, :meth:`run`."""
+        run from now on (cached: made again with its own rows held it is the same run; the cache of
+        other rows emptied, kept where the rows are those held already). Where the experiment holds
+        no rows, :meth:`run`."""
         if not self.holds:
             return self.run(x)
-        self.held, self.cache = None, {}
-        got = self.run(x)
-        self.held = None if got is None else got.held
+        key = tuple(np.round(np.asarray(x, float), 12))
+        got = terms(self.exp, self.data, self.cfg, self.filt, dict(zip(self.names, np.exp(key), strict=True)))
+        self.made += 1
+        rows = None if got is None else got.held
+        if rows is None or rows != self.held:
+            self.held, self.cache = rows, {}
+        self.cache[key] = got
         return got
 
     def prefetch(self, points: list[np.ndarray]) -> None:
