@@ -58,6 +58,11 @@ def main() -> None:
         sm = rep.get("smoother") or {}
         smooth = {**filt, **{f"assume_{k}": v for k, v in sm.get("values", {}).items()}}
         scores = {"data's": rmse({}, args.data, robot), "filter's": rmse(filt, args.data, robot)}
+        # what was told before a start the data do not reject and the values not identified were kept
+        # (each value but the disagreeing ones, where anything was), for a before-and-after in one run
+        before = {f"assume_{k}": v for k, v in rep["tuned"].items() if k not in rep["not_told"]}
+        if rep["held_out"]["generalises"] and not rep["contradicted"] and before != filt:
+            scores["filter's as told before 2026-12-07"] = rmse(before, args.data, robot)
         if sm.get("values"):
             scores["smoother's"] = rmse(smooth, args.data, robot)
         for which, s in scores.items():

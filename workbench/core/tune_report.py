@@ -17,7 +17,8 @@ def lines(report: dict) -> list[str]:
     for k, v in report["tuned"].items():
         lo, hi = report.get("interval", {}).get(k, (math.nan, math.nan))
         kept = not report.get("held_out", {}).get("generalises", True)
-        mark = ("" if report.get("identified", {}).get(k, True) or kept
+        mark = (", holds the start: kept" if k in report.get("not_rejected", ())
+                else "" if report.get("identified", {}).get(k, True) or kept
                 else ", not identified by these data: kept")
         said.append(f"{k.replace('_', '-')} {report['start'][k]:.4g} -> {v:.4g} ({_band(lo, hi)}{mark})")
     out = [f"tuned noise (the likelihood of {report['filter']}'s innovations on run 0, {report['evaluations']} "
@@ -50,5 +51,8 @@ def lines(report: dict) -> list[str]:
     if report.get("not_told"):
         out.append("not told (kept at the start): " + ", ".join(k.replace("_", "-") for k in report["not_told"])
                    + ": the filter's and the smoother's evidence disagree beyond their intervals")
+    if report.get("not_rejected"):
+        out.append("not told (kept at the start): " + ", ".join(k.replace("_", "-") for k in report["not_rejected"])
+                   + ": every identified value's 95 % interval holds its start, so the data do not reject it")
     out += [f"not tuned: {k.replace('_', '-')}: {why}" for k, why in report["left"].items()]
     return out
