@@ -22,6 +22,7 @@ from pathlib import Path
 
 from workbench import api
 from workbench.experiments.omni import faults
+from workbench.sweeps.grid import settings
 
 FAULTS = {
     "none": {},
@@ -37,8 +38,11 @@ def main() -> None:
     ap.add_argument("--poses", type=int, default=3000)
     ap.add_argument("--estimators", default="ekf,isam2,gtsam-batch")
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--set", action="append", default=[],
+                    help="KEY=VALUE for every run (repeatable, as a sweep's), e.g. huber=1.345")
     args = ap.parse_args()
-    print(f"load average {os.getloadavg()[0]:.2f}; {args.poses} poses, seed {args.seed}")
+    fixed = settings(api.get("omni"), args.set)
+    print(f"load average {os.getloadavg()[0]:.2f}; {args.poses} poses, seed {args.seed}; set {fixed}")
     print("| fault | estimator | pose RMSE m (bound) | map aligned m (bound) | left out | s | diagnosis |")
     print("|---|---|---|---|---|---|---|")
     with tempfile.TemporaryDirectory() as tmp:
@@ -46,7 +50,7 @@ def main() -> None:
             folder = Path(tmp) / name.replace(" ", "_").replace("%", "pc")
             faults.write(folder, faults.Faults(poses=args.poses, seed=args.seed, **fault))
             t0 = time.perf_counter()
-            r = api.run("omni", "log", data=str(folder), estimators=args.estimators)
+            r = api.run("omni", "log", data=str(folder), estimators=args.estimators, **fixed)
             wall = time.perf_counter() - t0
             for est, e in r.metrics["estimators"].items():
                 pos = e.get("position_rmse_whole_run", e.get("position_rmse", math.nan))

@@ -21,6 +21,7 @@ from pathlib import Path
 
 from workbench import api
 from workbench.experiments.omni import faults
+from workbench.sweeps.grid import settings
 
 CASES = [(r, s) for r in (0.05, 0.10, 0.20) for s in (3, 4, 5, 6)] + [(0.10, 0), (0.10, 1), (0.10, 2), (0.05, 1),
                                                                         (0.20, 0)]
@@ -30,16 +31,19 @@ def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--estimators", default="isam2,gtsam-batch")
     ap.add_argument("--poses", type=int, default=3000)
+    ap.add_argument("--set", action="append", default=[],
+                    help="KEY=VALUE for every run (repeatable, as a sweep's), e.g. huber=1.345")
     args = ap.parse_args()
+    fixed = settings(api.get("omni"), args.set)
     warnings.simplefilter("ignore")
-    print(f"load average {os.getloadavg()[0]:.2f}")
+    print(f"load average {os.getloadavg()[0]:.2f}; set {fixed}")
     print("| misread, seed | estimator | position m | map m (bound) | s | diagnosis |\n|---|---|---|---|---|---|")
     within: dict[str, int] = {}
     for rate, seed in CASES:
         with tempfile.TemporaryDirectory() as tmp:
             faults.write(Path(tmp), faults.Faults(poses=args.poses, seed=seed, misread=rate))
             t0 = time.perf_counter()
-            res = api.run("omni", "log", data=tmp, estimators=args.estimators)
+            res = api.run("omni", "log", data=tmp, estimators=args.estimators, **fixed)
             seconds = time.perf_counter() - t0
         for name, e in res.metrics["estimators"].items():
             if name == "odometry":

@@ -30,6 +30,7 @@ import numpy as np
 import pandas as pd
 
 from workbench import api
+from workbench.sweeps.grid import settings
 
 GOOD = 0.5
 """m: a position RMSE counted as right (MRCLAM 6's estimators end at 0.14-0.49 m without misreads)."""
@@ -56,9 +57,12 @@ def main() -> None:
     ap.add_argument("--rates", default="0,0.01,0.02")
     ap.add_argument("--seeds", default="0,1")
     ap.add_argument("--data", default=None, help="the MRCLAM 6 folder (default: the scenario's)")
+    ap.add_argument("--set", action="append", default=[],
+                    help="KEY=VALUE for every run (repeatable, as a sweep's), e.g. huber=1.345")
     args = ap.parse_args()
+    fixed = settings(api.get("omni"), args.set)
     warnings.simplefilter("ignore")
-    print(f"load average {os.getloadavg()[0]:.2f}")
+    print(f"load average {os.getloadavg()[0]:.2f}; set {fixed}")
     print("| robot | misread, seed | estimator: position m / map m [diagnosis] | s |\n|---|---|---|---|")
     good: dict[tuple[float, str], list[int]] = {}
     for robot in (int(r) for r in args.robots.split(",")):
@@ -73,7 +77,7 @@ def main() -> None:
                     shutil.copytree(log, copy)
                     n = misread(copy, rate, 1000 * robot + seed)
                     t0 = time.perf_counter()
-                    res = api.run("omni", "log", data=copy)
+                    res = api.run("omni", "log", data=copy, **fixed)
                     seconds = time.perf_counter() - t0
                     cells = []
                     for name, e in res.metrics["estimators"].items():

@@ -42,6 +42,11 @@ def bearing_noise(sigma: float, huber: float = 0.0) -> gtsam.noiseModel.Base:
     return base
 
 
+def sigma_of(model: gtsam.noiseModel.Base) -> float:
+    """A bearing factor's sigma, its Gaussian's where the model is robust (``Robust.sigmas`` throws)."""
+    return float((model.noise() if isinstance(model, gtsam.noiseModel.Robust) else model).sigmas()[0])
+
+
 class _Landmarks:
     """Held-back bearings per landmark until two rays give a good intersection."""
 

@@ -9,6 +9,7 @@ from gtsam.symbol_shorthand import L
 
 from workbench.experiments.omni.algorithms.graph.gating import gate_of
 from workbench.experiments.omni.algorithms.graph.incremental import _Incremental
+from workbench.experiments.omni.algorithms.graph.landmarks import sigma_of
 
 
 class _Pruned(_Incremental):
@@ -47,7 +48,7 @@ class _Pruned(_Incremental):
             factor = self.everything.at(i)
             if isinstance(factor, gtsam.BearingFactor2D):
                 r = float(factor.unwhitenedError(self.start)[0])
-                s2 = float(factor.noiseModel().sigmas()[0]) ** 2
+                s2 = sigma_of(factor.noiseModel()) ** 2
                 if r * r > threshold(s2) * s2:
                     out.add(i)
                 else:
