@@ -105,6 +105,7 @@ class OmniConfig(Config):
     noise_per_second: bool = by_scenario(False)
     lm_every: float = by_scenario(0.0)
     huber: float = 0.0
+    batch_huber: float = 0.0
     ekf_init: str = by_scenario("ut")
     ekf_second_order: bool = by_scenario(False)
     start_time: float | None = None
@@ -200,6 +201,8 @@ class OmniConfig(Config):
         require(math.isfinite(self.lm_every) and self.lm_every >= 0.0,
                 f"--lm-every must be >= 0 s (got {self.lm_every})")
         require(math.isfinite(self.huber) and self.huber >= 0.0, f"--huber must be >= 0 sigmas (got {self.huber})")
+        require(math.isfinite(self.batch_huber) and self.batch_huber >= 0.0,
+                f"--batch-huber must be >= 0 sigmas (got {self.batch_huber})")
         require(self.ekf_init in ("ut", "linear"), f"--ekf-init must be ut or linear (got {self.ekf_init!r})")
         starts = self.starts
         require(starts and set(starts) <= set(BATCH_STARTS) and len(set(starts)) == len(starts),
@@ -274,6 +277,9 @@ OPTIONS: tuple[Option, ...] = (
            "20 where that is 0), isam2, ekf (their answers), gnc (graduated non-convexity from the cheapest "
            "start solved before it).", str),
     Option("huber", "GTSAM: Huber threshold on bearing factors (0 = off)."),
+    Option("batch_huber", "gtsam-batch alone: Huber threshold on its bearing factors, in sigmas (0 = off; "
+           "iSAM2 and the starts it solves from stay Gaussian, and each start's fit test is the Gaussian "
+           "chi-square of the residuals)."),
     Option("from_images", "paper: render round images and estimate from their bearings.", bool,
            switch="--from-images/--from-bearings"),
     Option("image_size", "Round image size, px.", int),

@@ -64,11 +64,12 @@ class _Landmarks:
         self.noises: dict[float, gtsam.noiseModel.Base] = {}
 
     @classmethod
-    def of(cls, data: OmniData, cfg) -> _Landmarks:
+    def of(cls, data: OmniData, cfg, huber: float | None = None) -> _Landmarks:
         """The graph estimators' bookkeeping for ``data`` as ``cfg`` sets it (the bearings' sigma, the
-        parallax a landmark enters with, the Huber threshold, the field of view)."""
-        return cls(len(data.landmarks), data.sigma_bearing, math.radians(cfg.graph_parallax_deg), cfg.huber,
-                   fov=data.fov)
+        parallax a landmark enters with, the Huber threshold, ``cfg.huber`` unless ``huber`` is given,
+        the field of view)."""
+        return cls(len(data.landmarks), data.sigma_bearing, math.radians(cfg.graph_parallax_deg),
+                   cfg.huber if huber is None else huber, fov=data.fov)
 
     def factor(self, kf: int, lm: int, bearing: float) -> gtsam.BearingFactor2D:
         sigma = self.own.get((kf, lm))

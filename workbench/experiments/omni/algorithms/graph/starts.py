@@ -33,9 +33,18 @@ def fit(graph: gtsam.NonlinearFactorGraph, result: gtsam.Values, poses: int, lan
     squares of a linear(ised) least-squares fit: Bar-Shalom, Li, Kirubarajan, sec. 3.4); a wrong
     basin or a wrong noise model puts it far above. Readings: the bearings a gate left out are not
     counted (their test is the gate's), which biases it low by a little where the gate cut the
-    tail of good ones (0.99: 1 % of them)."""
+    tail of good ones (0.99: 1 % of them). A robust bearing factor (``--huber``, ``--batch-huber``)
+    counts its Gaussian's squared residual, not its kernel's loss: the test is of the noise model,
+    and a loss that grows linearly is no chi-square (it would pass a wrong basin more easily)."""
     residuals = sum(graph.at(i).dim() for i in range(graph.size()))
-    return 2.0 * float(graph.error(result)), int(residuals - 3 * poses - 2 * landmarks)
+    chi2 = 2.0 * float(graph.error(result))
+    for i in range(graph.size()):   # a robust factor's error is its kernel's loss: its Gaussian's instead
+        f = graph.at(i)
+        model = f.noiseModel() if isinstance(f, gtsam.BearingFactor2D) else None
+        if isinstance(model, gtsam.noiseModel.Robust):
+            r = model.noise().whiten(f.unwhitenedError(result))
+            chi2 += float(r @ r) - 2.0 * f.error(result)
+    return chi2, int(residuals - 3 * poses - 2 * landmarks)
 
 
 @dataclass
@@ -195,7 +204,7 @@ def _prepare(data: OmniData, cfg: OmniConfig, kf: Keyframes, start: Start):
     mapped = np.isfinite(start.landmarks).all(axis=1)
     threshold = gate_of(cfg)
     gating_on = gated(cfg)
-    marks = _Landmarks.of(data, cfg)
+    marks = _Landmarks.of(data, cfg, huber=cfg.batch_huber or None)
     values = gtsam.Values()
     for e in range(E):
         values.insert(X(e), gtsam.Pose2(*start.poses[e]))
