@@ -36,13 +36,15 @@ def fit(graph: gtsam.NonlinearFactorGraph, result: gtsam.Values, poses: int, lan
     tail of good ones (0.99: 1 % of them). A robust bearing factor (``--huber``, ``--batch-huber``)
     counts its Gaussian's squared residual, not its kernel's loss: the test is of the noise model,
     and a loss that grows linearly is no chi-square (it would pass a wrong basin more easily)."""
-    residuals = sum(graph.at(i).dim() for i in range(graph.size()))
-    chi2 = 2.0 * float(graph.error(result))
-    for i in range(graph.size()):   # a robust factor's error is its kernel's loss: its Gaussian's instead
+    chi2, residuals = 2.0 * float(graph.error(result)), 0
+    robust = None   # whether the bearings are robust (they share one kernel): read off the first
+    for i in range(graph.size()):
         f = graph.at(i)
-        model = f.noiseModel() if isinstance(f, gtsam.BearingFactor2D) else None
-        if isinstance(model, gtsam.noiseModel.Robust):
-            r = model.noise().whiten(f.unwhitenedError(result))
+        residuals += f.dim()
+        if robust is None and isinstance(f, gtsam.BearingFactor2D):
+            robust = isinstance(f.noiseModel(), gtsam.noiseModel.Robust)
+        if robust and isinstance(f, gtsam.BearingFactor2D):   # its kernel's loss out, its Gaussian's in
+            r = f.noiseModel().noise().whiten(f.unwhitenedError(result))
             chi2 += float(r @ r) - 2.0 * f.error(result)
     return chi2, int(residuals - 3 * poses - 2 * landmarks)
 
