@@ -266,3 +266,34 @@ def test_a_camera_known_exactly_leaves_the_state():
         a, b = exact.variances(delay), tiny.variances(delay)
         for q in ("position", "alpha", "range"):
             assert np.allclose(a[q], b[q], rtol=1e-3), (delay, q)
+
+
+def test_omni_smoothing_marginals_in_chunks_equal_one_key_at_a_time(monkeypatch):
+    """The smoothing bound reads each key's covariance off joint marginals of a chunk of keys; with
+    chunks of 7 (several per log, some split across poses and landmarks) every block equals
+    GTSAM's one-key marginal to 1e-7 relative (measured up to 1e-9; what replay tolerates is 1e-5)."""
+    import gtsam
+
+    from workbench.experiments.omni import bounds as omni_bounds
+    from workbench.experiments.omni.algorithms import graph
+    from workbench.experiments.omni.config import OmniConfig
+    from workbench.experiments.omni.scenario import simulate
+
+    cfg = OmniConfig(duration=40.0).validate()
+    data = simulate(cfg, np.random.default_rng(1))
+    kf = graph.keyframes(data, cfg)
+    made = []
+    real = gtsam.Marginals
+    monkeypatch.setattr(gtsam, "Marginals", lambda g, v: made.append((g, v)) or real(g, v))
+    monkeypatch.setattr(omni_bounds, "CHUNK", 7)
+    poses, maps = omni_bounds.smoothing(data, kf)
+    g, values = made[-1]
+    one = real(g, values)
+    keys = list(values.keys())
+    chunked = omni_bounds._marginals(one, keys)
+    assert len(keys) > 3 * 7 and len(chunked) == len(keys)
+    for k, block in zip(keys, chunked, strict=True):
+        alone = one.marginalCovariance(k)
+        assert np.abs(block - alone).max() <= 1e-7 * np.abs(alone).max(), gtsam.DefaultKeyFormatter(k)
+    seen = np.isfinite(maps[:, 0, 0])
+    assert seen.sum() > 5 and len(poses) == len(kf.bearings)
