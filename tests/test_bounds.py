@@ -276,6 +276,7 @@ def test_omni_smoothing_marginals_in_chunks_equal_one_key_at_a_time(monkeypatch)
 
     from workbench.experiments.omni import bounds as omni_bounds
     from workbench.experiments.omni.algorithms import graph
+    from workbench.experiments.omni.algorithms.graph import marginals as graph_marginals
     from workbench.experiments.omni.config import OmniConfig
     from workbench.experiments.omni.scenario import simulate
 
@@ -285,12 +286,12 @@ def test_omni_smoothing_marginals_in_chunks_equal_one_key_at_a_time(monkeypatch)
     made = []
     real = gtsam.Marginals
     monkeypatch.setattr(gtsam, "Marginals", lambda g, v: made.append((g, v)) or real(g, v))
-    monkeypatch.setattr(omni_bounds, "CHUNK", 7)
+    monkeypatch.setattr(graph_marginals, "CHUNK", 7)
     poses, maps = omni_bounds.smoothing(data, kf)
     g, values = made[-1]
     one = real(g, values)
     keys = list(values.keys())
-    chunked = omni_bounds._marginals(one, keys)
+    chunked = graph_marginals.marginal_blocks(one, keys)
     assert len(keys) > 3 * 7 and len(chunked) == len(keys)
     for k, block in zip(keys, chunked, strict=True):
         alone = one.marginalCovariance(k)

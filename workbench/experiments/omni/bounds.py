@@ -26,6 +26,7 @@ import numpy as np
 from gtsam.symbol_shorthand import L, X
 
 from workbench.experiments.omni.algorithms import graph
+from workbench.experiments.omni.algorithms.graph.marginals import marginal_blocks
 from workbench.experiments.omni.scenario import OmniData
 
 LANDMARK_PRIOR = 1.0e3
@@ -133,33 +134,12 @@ def smoothing(data: OmniData, kf: graph.Keyframes) -> tuple[np.ndarray, np.ndarr
         values.insert(L(int(lm)), data.landmarks[lm])
         g.add(gtsam.PriorFactorPoint2(L(int(lm)), data.landmarks[lm], prior))
     marginals = gtsam.Marginals(g, values)
-    blocks = _marginals(marginals, [X(e) for e in range(E)] + [L(int(lm)) for lm in np.flatnonzero(seen)])
+    blocks = marginal_blocks(marginals, [X(e) for e in range(E)] + [L(int(lm)) for lm in np.flatnonzero(seen)])
     poses = np.array(blocks[:E])
     maps = np.full((N, 2, 2), np.nan)
     if seen.any():
         maps[seen] = blocks[E:]
     return graph.to_world(poses, truth[:, 2]), maps
-
-
-CHUNK = 50
-"""Keys per joint marginal in :func:`_marginals`."""
-
-
-def _marginals(marginals: gtsam.Marginals, keys: list[int]) -> list[np.ndarray]:
-    """Each key's marginal covariance, read off joint marginals of ``CHUNK`` keys at a time.
-
-    One key at a time, GTSAM eliminates the clique that holds it down to that key, again for every
-    key in it: where misread ids tie the map together (20 % misread on a 3,000-pose drive, where a
-    landmark's marginal alone took 55 ms, the median), that was 15 s for 750 keys, and 0.6 s in
-    chunks of 50; on a drive without misreads both take 0.1 s. The chunks keep the cost linear in the
-    log (each joint is of at most ``CHUNK`` keys) and agree with the one-key marginals to about 1e-9
-    relative (replay tolerates 1e-5)."""
-    out = []
-    for i in range(0, len(keys), CHUNK):
-        part = keys[i:i + CHUNK]
-        joint = marginals.jointMarginalCovariance(gtsam.KeyVector(part))
-        out += [joint.at(k, k) for k in part]
-    return out
 
 
 def variances(data: OmniData, kf: graph.Keyframes, delays: set[float]) -> dict:

@@ -28,6 +28,7 @@ from workbench.experiments.omni.algorithms.graph.landmarks import (
     ray_chance,
     snooped,
 )
+from workbench.experiments.omni.algorithms.graph.marginals import marginal_blocks
 from workbench.experiments.omni.algorithms.graph.relocation import _relocate, _tolerance
 from workbench.experiments.omni.algorithms.graph.starts import Start, _best_start, fit, named_starts
 from workbench.experiments.omni.config import OmniConfig
@@ -213,9 +214,11 @@ def _batch_marginals(graph: gtsam.NonlinearFactorGraph, result: gtsam.Values, E:
     lm_cov = np.full((len(inserted), 2, 2), np.nan)
     try:
         marginals = gtsam.Marginals(graph, result)
-        covs = np.array([marginals.marginalCovariance(X(e)) for e in range(E)])
-        for lm in np.flatnonzero(inserted):
-            lm_cov[lm] = marginals.marginalCovariance(L(int(lm)))
+        held = np.flatnonzero(inserted)
+        blocks = marginal_blocks(marginals, [X(e) for e in range(E)] + [L(int(lm)) for lm in held])
+        covs = np.array(blocks[:E])
+        if len(held):
+            lm_cov[held] = blocks[E:]
     except RuntimeError:
         covs = np.full((E, 3, 3), np.nan)
     return covs, lm_cov
