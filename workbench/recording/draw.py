@@ -128,7 +128,7 @@ def segments(rec: rr.RecordingStream, path: str, timeline: str, t: np.ndarray, s
     strips = np.stack([_xyz(start[ok], z), _xyz(end[ok], z)], axis=1)
     if ok.any():
         rec.send_columns(path, indexes=[times(timeline, t[ok])],
-                         columns=rr.LineStrips3D.columns(strips=list(strips)))
+                         columns=rr.LineStrips3D.columns(strips=np.ascontiguousarray(strips, float)))
     return int(ok.sum())
 
 
@@ -139,7 +139,7 @@ def polylines(rec: rr.RecordingStream, path: str, timeline: str, t: np.ndarray, 
     rec.log(path, rr.LineStrips3D.from_fields(colors=[rgb], radii=[radius]), static=True)
     if ok.any():
         rec.send_columns(path, indexes=[times(timeline, t[ok])],
-                         columns=rr.LineStrips3D.columns(strips=list(_xyz(paths[ok]))))
+                         columns=rr.LineStrips3D.columns(strips=np.ascontiguousarray(_xyz(paths[ok]), float)))
     return int(ok.sum())
 
 
@@ -203,9 +203,10 @@ def segment_sets(rec: rr.RecordingStream, path: str, timeline: str, t: np.ndarra
                  start: np.ndarray, end: np.ndarray, rgb, radius: float = 0.05) -> int:
     """``counts[i]`` segments at ``t[i]``; ``start``/``end`` ``(sum(counts), 2)`` (e.g. bearing rays)."""
     rec.log(path, rr.LineStrips3D.from_fields(colors=[rgb], radii=[radius]), static=True)
-    strips = np.stack([_xyz(start), _xyz(end)], axis=1)
+    # an (n, 2, 3) array, not a list of strips: rerun converts it in one piece (120x faster at 50,000)
+    strips = np.ascontiguousarray(np.stack([_xyz(start), _xyz(end)], axis=1), float)
     rec.send_columns(path, indexes=[times(timeline, t)],
-                     columns=rr.LineStrips3D.columns(strips=list(strips)).partition(np.asarray(counts)))
+                     columns=rr.LineStrips3D.columns(strips=strips).partition(np.asarray(counts)))
     return len(t)
 
 
