@@ -31,6 +31,7 @@ from workbench.config.settings import COMMON, Option, Scenario, config_json
 from workbench.core.estimator import Estimator, RunContext, estimate_all, resolve
 from workbench.core.parts import Command, Demo, Later, Parts, Preset, check
 from workbench.core.results import RunResult, RunSummary, without
+from workbench.core.threads import on_one_blas_thread
 from workbench.errors import WorkbenchError
 from workbench.metrics import base as metric
 from workbench.metrics import bootstrap, diagnosis, truthfree
@@ -249,6 +250,7 @@ class Experiment:
         expand = self.parts.grid_values
         return expand(name, values, scenario, fixed) if expand is not None else (values, [])
 
+    @on_one_blas_thread
     def run_once(self, cfg: Any, run: int, estimators: list[Estimator], record: bool = False,
                  threads: int = 1) -> RunResult:
         """Run ``run``'s dataset and every estimator on it: the package's ``run.run_once`` where it
@@ -282,6 +284,7 @@ class Experiment:
         value = getattr(cfg, "settle", None)
         return None if value is None else float(value)
 
+    @on_one_blas_thread
     def evaluate(self, result: RunResult, cfg: Any, run: int) -> RunSummary:
         """A run's summary, small enough to send back: the package's ``evaluate.summarise`` and
         every metric's samples for every estimate (:func:`.metric.evaluate`)."""

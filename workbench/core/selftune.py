@@ -105,6 +105,7 @@ import numpy as np
 from workbench.core import optimum
 from workbench.core.components import vce
 from workbench.core.objective import Terms, _Objective, terms  # noqa: F401 (Terms, terms: this module's API)
+from workbench.core.threads import on_one_blas_thread
 from workbench.errors import WorkbenchError
 
 MAX_EVALUATIONS = 60     # the joint search's budget on the first part (half that for each refinement)
@@ -297,6 +298,7 @@ def intervals(H: np.ndarray, x: np.ndarray, drop: np.ndarray | None = None,
     return out, active
 
 
+@on_one_blas_thread
 def tune_noise(exp: Any, cfg: Any, method: str | None = None) -> tuple[Any, dict]:
     """``cfg`` with the tuned values as what the estimators assume, and the report: the values
     before and after with their 95 % intervals and which are identified, the first part's NLL
