@@ -1,17 +1,13 @@
-import os
-
 import numpy as np
 import pytest
-from threadpoolctl import threadpool_limits
 
-from workbench.core.threads import BLAS_VARIABLES
+from workbench.core.threads import one_blas_thread
 from workbench.experiments.sea.config import SeaConfig
 
-if not any(v in os.environ for v in BLAS_VARIABLES):
-    # one BLAS thread in each test worker, as the command and the runs use (workbench.core.threads):
-    # with a worker per core, numpy's thread per core only spins beside the other worker (the heavy
-    # numerical files took 11 % less CPU so)
-    threadpool_limits(limits=1, user_api="blas")
+# one BLAS thread in each test worker for its whole life, as the command and the runs use
+# (workbench.core.threads): with a worker per core, numpy's thread per core only spins beside the
+# other worker (the heavy numerical files took 11 % less CPU so)
+one_blas_thread().__enter__()
 
 
 @pytest.fixture

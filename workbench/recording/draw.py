@@ -120,6 +120,13 @@ def moving_point(rec: rr.RecordingStream, path: str, timeline: str, t: np.ndarra
     return int(ok.sum())
 
 
+def strip_array(strips: np.ndarray) -> np.ndarray:
+    """Line strips of one length ``(n, k, 2 or 3)`` as rerun takes them fastest: one contiguous float
+    array, which it converts in one piece; a list of strips it converts one by one (50,000 strips:
+    0.007 s against 0.88 s, the same Arrow array)."""
+    return np.ascontiguousarray(strips, float)
+
+
 def segments(rec: rr.RecordingStream, path: str, timeline: str, t: np.ndarray, start: np.ndarray,
              end: np.ndarray, rgb, radius: float = 0.3, z: float = 0.0) -> int:
     """One line segment per step (e.g. the line of sight), at height ``z``."""
@@ -128,7 +135,7 @@ def segments(rec: rr.RecordingStream, path: str, timeline: str, t: np.ndarray, s
     strips = np.stack([_xyz(start[ok], z), _xyz(end[ok], z)], axis=1)
     if ok.any():
         rec.send_columns(path, indexes=[times(timeline, t[ok])],
-                         columns=rr.LineStrips3D.columns(strips=np.ascontiguousarray(strips, float)))
+                         columns=rr.LineStrips3D.columns(strips=strip_array(strips)))
     return int(ok.sum())
 
 
@@ -139,7 +146,7 @@ def polylines(rec: rr.RecordingStream, path: str, timeline: str, t: np.ndarray, 
     rec.log(path, rr.LineStrips3D.from_fields(colors=[rgb], radii=[radius]), static=True)
     if ok.any():
         rec.send_columns(path, indexes=[times(timeline, t[ok])],
-                         columns=rr.LineStrips3D.columns(strips=np.ascontiguousarray(_xyz(paths[ok]), float)))
+                         columns=rr.LineStrips3D.columns(strips=strip_array(_xyz(paths[ok]))))
     return int(ok.sum())
 
 
@@ -203,8 +210,7 @@ def segment_sets(rec: rr.RecordingStream, path: str, timeline: str, t: np.ndarra
                  start: np.ndarray, end: np.ndarray, rgb, radius: float = 0.05) -> int:
     """``counts[i]`` segments at ``t[i]``; ``start``/``end`` ``(sum(counts), 2)`` (e.g. bearing rays)."""
     rec.log(path, rr.LineStrips3D.from_fields(colors=[rgb], radii=[radius]), static=True)
-    # an (n, 2, 3) array, not a list of strips: rerun converts it in one piece (120x faster at 50,000)
-    strips = np.ascontiguousarray(np.stack([_xyz(start), _xyz(end)], axis=1), float)
+    strips = strip_array(np.stack([_xyz(start), _xyz(end)], axis=1))
     rec.send_columns(path, indexes=[times(timeline, t)],
                      columns=rr.LineStrips3D.columns(strips=strips).partition(np.asarray(counts)))
     return len(t)

@@ -261,7 +261,7 @@ def record_images(rec: rr.RecordingStream, first: RunResult) -> None:
         strips = np.stack([np.broadcast_to(ends, v.shape), v], axis=-1) * s
         rec.log("/camera/horizon", rr.LineStrips2D.from_fields(colors=[(255, 220, 0)], radii=[1.0]), static=True)
         rec.send_columns("/camera/horizon", indexes=[draw.times(TL, t[ok])],
-                         columns=rr.LineStrips2D.columns(strips=np.ascontiguousarray(strips, float)))
+                         columns=rr.LineStrips2D.columns(strips=draw.strip_array(strips)))
     _boxes(rec, "/camera/object", t, st.box * s, (255, 60, 60), "object")
     _boxes(rec, "/camera/gate", t, st.gate * s, (120, 200, 255), None)
     for path, xy, rgb in (("/camera/waterline", st.pixel, (255, 60, 60)), ("/camera/truth", st.true_pixel,
