@@ -20,18 +20,27 @@ def wb(*args, cwd=None, timeout: int = 900, env: dict | None = None) -> subproce
 
 def cli(*args: str) -> subprocess.CompletedProcess:
     """``workbench ARGS`` in this process (:func:`workbench.cli.run_cli`, the command's own entry
-    after its signal set-up), output captured as text: for the many short commands that end in a
-    one-line error, where a fresh interpreter's 1-2 s of imports is all a subprocess would add."""
+    after its signal set-up; ``sys.argv`` as the command's, which a recording stores), output
+    captured as text. For every test of what a command does: a fresh interpreter adds 2 s of
+    imports a call (the suite ran about 190 of them). :func:`wb` stays where the process itself is
+    the test: signals and kills, the environment (another processor's kernels), a scratch copy of
+    the package, a command that may hang, and the tutorials and the browser's recordings, made as
+    a user makes them."""
     from typer.testing import CliRunner
 
     from workbench.cli import run_cli
 
-    with CliRunner().isolation() as (out, err, _):
-        code = run_cli(list(args))
-        sys.stdout.flush()
-        sys.stderr.flush()
-        return subprocess.CompletedProcess(["workbench", *args], code, out.getvalue().decode(),
-                                           err.getvalue().decode())
+    argv = sys.argv
+    sys.argv = ["workbench", *args]  # what a recording says made it
+    try:
+        with CliRunner().isolation() as (out, err, _):
+            code = run_cli(list(args))
+            sys.stdout.flush()
+            sys.stderr.flush()
+            return subprocess.CompletedProcess(["workbench", *args], code, out.getvalue().decode(),
+                                               err.getvalue().decode())
+    finally:
+        sys.argv = argv
 
 
 def edit_line(text: str, number: int, change) -> str:

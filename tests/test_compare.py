@@ -5,7 +5,7 @@ runs), and bad input as one line and exit code 2."""
 
 import numpy as np
 import pytest
-from launcher import cli, wb
+from launcher import cli
 
 from workbench.recording import readback
 from workbench.tools import browser, provenance
@@ -16,9 +16,9 @@ def sea(tmp_path_factory):
     d = tmp_path_factory.mktemp("compare")
     a, b, c = d / "a.rrd", d / "b.rrd", d / "c.rrd"
     for path, lam in ((a, "1"), (b, "0.99")):
-        r = wb("sea", "--runs", "3", "--duration", "20", "--lam", lam, "--out", str(path))
+        r = cli("sea", "--runs", "3", "--duration", "20", "--lam", lam, "--out", str(path))
         assert r.returncode == 0, r.stderr
-    r = wb("compare", str(a), str(b), "--out", str(c))
+    r = cli("compare", str(a), str(b), "--out", str(c))
     assert r.returncode == 0, r.stderr
     return a, b, c, r.stdout
 
@@ -65,9 +65,9 @@ def test_the_layout_has_each_run_and_the_overlays(sea):
                             for n in ("geometric", "rls", "window-rls")}
     text = readback.static_values(c, "/comparison", "TextDocument:text")[0]
     assert "**lam=0.99 - lam=1**" in text and "| rls.rmse.x |" in text and "| ekf." not in text
-    r = wb("info", str(c))
+    r = cli("info", str(c))
     assert r.returncode == 0 and "a comparison of 2 sea recordings" in r.stdout
-    r = wb("replay", str(c))
+    r = cli("replay", str(c))
     assert r.returncode == 2 and "is a comparison of 2 recordings" in r.stderr
 
 
@@ -77,9 +77,9 @@ def test_omni_ekf_against_a_plugin(tmp_path):
                       "def shifted(data, cfg):\n    return SlamEstimate(pose=data.truth + [0.3, -0.4, 0.0])\n")
     a, b, c = tmp_path / "ekf.rrd", tmp_path / "mine.rrd", tmp_path / "c.rrd"
     for path, est in ((a, "ekf"), (b, f"{plugin}:shifted")):
-        r = wb("omni", "--runs", "2", "--duration", "40", "--estimators", est, "--out", str(path))
+        r = cli("omni", "--runs", "2", "--duration", "40", "--estimators", est, "--out", str(path))
         assert r.returncode == 0, r.stderr
-    r = wb("compare", str(a), str(b), "--pair", "ekf:shifted", "--out", str(c))
+    r = cli("compare", str(a), str(b), "--pair", "ekf:shifted", "--out", str(c))
     assert r.returncode == 0, r.stderr
     diffs = readback.all_series(c, ("/differences",))
     t, d = diffs["/differences/errors/position/shifted_-_ekf_shifted_-_ekf"]
@@ -95,7 +95,7 @@ def test_bad_input_is_one_line_and_exit_2(sea, tmp_path):
     truncated.write_bytes(a.read_bytes()[:300])
     (tmp_path / "notes.txt").write_text("x")
     omni = tmp_path / "omni.rrd"
-    assert wb("omni", "--duration", "20", "--out", str(omni)).returncode == 0
+    assert cli("omni", "--duration", "20", "--out", str(omni)).returncode == 0
     cases = [
         ((str(a), str(tmp_path / "missing.rrd")), "no such recording"),
         ((str(a), str(tmp_path / "notes.txt")), "not a recording (.rrd)"),

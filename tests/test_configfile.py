@@ -6,23 +6,23 @@ import json
 
 import numpy as np
 import pytest
-from launcher import cli, wb
+from launcher import cli
 
 import workbench
 
 
 def test_a_recordings_stored_config_runs_again_the_same(tmp_path):
     first = tmp_path / "a.rrd"
-    r = wb("sea", "--runs", "2", "--duration", "20", "--sigma-acc", "0.3", "--order", "3", "--estimators",
-           "ekf,gtsam,rls", "--out", str(first), "--metrics", str(tmp_path / "a.json"))
+    r = cli("sea", "--runs", "2", "--duration", "20", "--sigma-acc", "0.3", "--order", "3", "--estimators",
+            "ekf,gtsam,rls", "--out", str(first), "--metrics", str(tmp_path / "a.json"))
     assert r.returncode == 0, r.stderr
-    shown = wb("info", str(first), "--config")
+    shown = cli("info", str(first), "--config")
     assert shown.returncode == 0, shown.stderr
     (tmp_path / "c.json").write_text(shown.stdout)
     stored = json.loads(shown.stdout)
     assert stored["sigma_acc"] == 0.3 and stored["order_alpha"] == 3 and stored["runs"] == 2
-    again = wb("sea", "--config", str(tmp_path / "c.json"), "--out", str(tmp_path / "b.rrd"),
-               "--metrics", str(tmp_path / "b.json"))
+    again = cli("sea", "--config", str(tmp_path / "c.json"), "--out", str(tmp_path / "b.rrd"),
+                "--metrics", str(tmp_path / "b.json"))
     assert again.returncode == 0, again.stderr
     a, b = (json.loads((tmp_path / f"{n}.json").read_text()) for n in "ab")
     assert list(b["estimators"]) == ["ekf", "gtsam", "rls"]
@@ -78,8 +78,8 @@ def test_a_bad_file_is_one_line_naming_the_key(tmp_path, text, suffix, said):
 def test_a_sweep_takes_a_config_file_beneath_its_grid(tmp_path):
     (tmp_path / "s.toml").write_text('sigma-acc = 0.2\nlam = 0.5\nruns = 2\nduration = 20.0\n'
                                      'estimators = ["ekf", "gtsam"]\n')
-    r = wb("sweep", "sea", "--config", str(tmp_path / "s.toml"), "--grid", "lam=0.9,1", "--out",
-           str(tmp_path / "sw"), "--jobs", "1")
+    r = cli("sweep", "sea", "--config", str(tmp_path / "s.toml"), "--grid", "lam=0.9,1", "--out",
+            str(tmp_path / "sw"), "--jobs", "1")
     assert r.returncode == 0, r.stderr
     manifest = json.loads((tmp_path / "sw" / "sweep.json").read_text())
     assert manifest["fixed"] == {"sigma_acc": 0.2, "duration": 20.0}   # the grid sets lam

@@ -12,7 +12,7 @@ import textwrap
 import numpy as np
 import pyarrow.parquet as pq
 import pytest
-from launcher import cli, wb
+from launcher import cli
 
 import workbench
 from workbench.core.registry import get
@@ -107,7 +107,7 @@ def test_a_metric_of_your_own_everywhere(tmp_path):
     spec = f"{tmp_path / 'mine.py'}:final_error"
     for experiment, args in (("sea", ("--duration", "10")), ("omni", ("--duration", "40"))):
         out, m = tmp_path / f"{experiment}.rrd", tmp_path / f"{experiment}.json"
-        r = wb(experiment, "--runs", "2", *args, "--add-metrics", spec, "--out", str(out), "--metrics", str(m))
+        r = cli(experiment, "--runs", "2", *args, "--add-metrics", spec, "--out", str(out), "--metrics", str(m))
         assert r.returncode == 0, r.stderr
         assert "final_error m" in r.stdout.split("\n\n")[1], r.stdout     # a column of the table
         stats = json.loads(m.read_text())
@@ -118,10 +118,10 @@ def test_a_metric_of_your_own_everywhere(tmp_path):
                 assert e["final_error"] == pytest.approx(e["final_position"], rel=1e-9), name
         counts = readback.row_counts(out)
         assert not any("/final_error/" in k for k in counts)   # not a time series: no curve
-    r = wb("replay", str(tmp_path / "sea.rrd"))
+    r = cli("replay", str(tmp_path / "sea.rrd"))
     assert r.returncode == 0 and "reproduces" in r.stdout, r.stdout + r.stderr
-    r = wb("sweep", "sea", "--grid", "lam=0.98,1", "--runs", "2", "--set", "duration=10", "--set",
-           f"add_metrics={spec}", "--out", str(tmp_path / "sw"))
+    r = cli("sweep", "sea", "--grid", "lam=0.98,1", "--runs", "2", "--set", "duration=10", "--set",
+            f"add_metrics={spec}", "--out", str(tmp_path / "sw"))
     assert r.returncode == 0, r.stderr
     rows = pq.read_table(tmp_path / "sw" / "tasks").to_pylist()
     assert len([x for x in rows if x["metric"] == "final_error"]) == 2 * 2 * 6   # cells x runs x estimators
@@ -169,8 +169,8 @@ def test_an_installed_metric_applies_to_every_experiment_it_names(tmp_path):
 def test_a_broken_metric_costs_its_own_figures(tmp_path):
     (tmp_path / "mine.py").write_text(PLUGIN)
     m = tmp_path / "m.json"
-    r = wb("sea", "--runs", "2", "--duration", "10", "--add-metrics", f"{tmp_path / 'mine.py'}:broken",
-           "--out", str(tmp_path / "a.rrd"), "--metrics", str(m))
+    r = cli("sea", "--runs", "2", "--duration", "10", "--add-metrics", f"{tmp_path / 'mine.py'}:broken",
+            "--out", str(tmp_path / "a.rrd"), "--metrics", str(m))
     assert r.returncode == 3 and "error: metric 'broken' failed on 'geometric': RuntimeError: deliberately" in r.stderr
     assert "Traceback" not in r.stderr
     stats = json.loads(m.read_text())

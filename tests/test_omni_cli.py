@@ -6,7 +6,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from launcher import DATA, cli, wb
+from launcher import DATA, cli
 
 import workbench
 from workbench.experiments.omni.readers import tum
@@ -20,8 +20,8 @@ SHORT = ("--duration", "40")
 def recorded(tmp_path_factory):
     d = tmp_path_factory.mktemp("omni")
     out, m = d / "omni.rrd", d / "m.json"
-    r = wb("omni", "--runs", "2", "--seed", "5", "--out", str(out), "--metrics", str(m), "--export-tum",
-           str(d / "tum"), *SHORT)
+    r = cli("omni", "--runs", "2", "--seed", "5", "--out", str(out), "--metrics", str(m), "--export-tum",
+            str(d / "tum"), *SHORT)
     assert r.returncode == 0, r.stderr
     return d, out, json.loads(m.read_text())
 
@@ -87,8 +87,8 @@ def test_tum_export_matches_the_metrics(recorded):
 def test_same_seed_same_numbers(tmp_path, recorded):
     _, _, stats = recorded
     m = tmp_path / "m.json"
-    r = wb("omni", "--runs", "2", "--seed", "5", "--out", str(tmp_path / "a.rrd"), "--metrics", str(m), *SHORT,
-           "--estimators", "odometry,ekf,gtsam-batch")
+    r = cli("omni", "--runs", "2", "--seed", "5", "--out", str(tmp_path / "a.rrd"), "--metrics", str(m), *SHORT,
+            "--estimators", "odometry,ekf,gtsam-batch")
     assert r.returncode == 0, r.stderr
     again = json.loads(m.read_text())
     for name in ("odometry", "ekf", "gtsam-batch"):
@@ -123,7 +123,7 @@ def _mrclam_copy(tmp_path, mutate=None) -> Path:
 def test_mrclam_folder_runs_every_estimator(tmp_path):
     d = _mrclam_copy(tmp_path)
     m = tmp_path / "m.json"
-    r = wb("omni", "--scenario", "mrclam", "--data", str(d), "--out", str(tmp_path / "r.rrd"), "--metrics", str(m))
+    r = cli("omni", "--scenario", "mrclam", "--data", str(d), "--out", str(tmp_path / "r.rrd"), "--metrics", str(m))
     assert r.returncode == 0, r.stderr
     stats = json.loads(m.read_text())
     assert set(stats["estimators"]) == set(ALL)
@@ -139,8 +139,8 @@ def test_a_log_without_its_truth_runs(tmp_path):
     with_truth = workbench.run("omni", scenario="mrclam", data=d, estimators="odometry,ekf,gtsam-batch")
     (d / "Robot1_Groundtruth.dat").unlink()
     out, m = tmp_path / "n.rrd", tmp_path / "n.json"
-    r = wb("omni", "--scenario", "mrclam", "--data", str(d), "--estimators", "odometry,ekf,gtsam-batch",
-           "--out", str(out), "--metrics", str(m))
+    r = cli("omni", "--scenario", "mrclam", "--data", str(d), "--estimators", "odometry,ekf,gtsam-batch",
+            "--out", str(out), "--metrics", str(m))
     assert r.returncode == 0, r.stderr
     assert "warning: Robot1_Groundtruth.dat: absent" in r.stderr and "Traceback" not in r.stderr
     stats = json.loads(m.read_text())
@@ -152,8 +152,8 @@ def test_a_log_without_its_truth_runs(tmp_path):
     for name, est in with_truth.estimates.items():
         assert np.allclose(without.estimates[name].pose, est.pose, atol=1e-9), name
     (d / "Landmark_Groundtruth.dat").unlink()
-    r = wb("omni", "--scenario", "mrclam", "--data", str(d), "--estimators", "odometry,gtsam-batch",
-           "--out", str(tmp_path / "m.rrd"))
+    r = cli("omni", "--scenario", "mrclam", "--data", str(d), "--estimators", "odometry,gtsam-batch",
+            "--out", str(tmp_path / "m.rrd"))
     assert r.returncode == 0 and "Landmark_Groundtruth.dat: absent" in r.stderr, r.stderr
 
 
@@ -180,8 +180,8 @@ def test_a_gap_in_the_commands_is_read_as_a_switch_and_shown(tmp_path):
     ends = {}
     for how in ("switch", "hold"):
         out, m = tmp_path / f"{how}.rrd", tmp_path / f"{how}.json"
-        r = wb("omni", "--scenario", "mrclam", "--data", str(d), "--estimators", "odometry", "--out", str(out),
-               "--metrics", str(m), "--odometry-between", how)
+        r = cli("omni", "--scenario", "mrclam", "--data", str(d), "--estimators", "odometry", "--out", str(out),
+                "--metrics", str(m), "--odometry-between", how)
         assert r.returncode == 0, r.stderr
         ends[how] = json.loads(m.read_text())["estimators"]["odometry"]["final"]["position"]
         rows = readback.row_counts(out)
@@ -244,8 +244,8 @@ def test_real_robots(tmp_path, robot):
     batch smoother is within 0.5 m RMS of the Vicon (and 3x better than dead reckoning), iSAM2's
     trajectory at the end within 2x of it, the EKF better than odometry, and aligning never hurts."""
     m = tmp_path / "m.json"
-    r = wb("omni", "--scenario", "mrclam", "--robot", str(robot), "--out", str(tmp_path / "r.rrd"),
-           "--metrics", str(m))
+    r = cli("omni", "--scenario", "mrclam", "--robot", str(robot), "--out", str(tmp_path / "r.rrd"),
+            "--metrics", str(m))
     assert r.returncode == 0, r.stderr
     e = json.loads(m.read_text())["estimators"]
     odo = e["odometry"]["rmse"]["position"]
@@ -259,8 +259,8 @@ def test_real_robots(tmp_path, robot):
 
 def test_from_images(tmp_path):
     out, m = tmp_path / "img.rrd", tmp_path / "m.json"
-    r = wb("omni", "--from-images", "--duration", "20", "--estimators", "odometry,ekf,isam2", "--out", str(out),
-           "--metrics", str(m), "--bad-frames", "4")
+    r = cli("omni", "--from-images", "--duration", "20", "--estimators", "odometry,ekf,isam2", "--out", str(out),
+            "--metrics", str(m), "--bad-frames", "4")
     assert r.returncode == 0, r.stderr
     im = json.loads(m.read_text())["images"]
     assert im["frames"] == 100 and im["bearing_rmse"] < 0.2 and im["detection_rate"] > 0.9
@@ -316,8 +316,8 @@ def test_the_recording_shows_the_gated_bearings(tmp_path):
     from rerun.chunk import RrdReader
 
     out, m = tmp_path / "r3.rrd", tmp_path / "m.json"
-    r = wb("omni", "--scenario", "mrclam", "--robot", "3", "--end-time", "300", "--estimators", "gtsam-batch",
-           "--out", str(out), "--metrics", str(m))
+    r = cli("omni", "--scenario", "mrclam", "--robot", "3", "--end-time", "300", "--estimators", "gtsam-batch",
+            "--out", str(out), "--metrics", str(m))
     assert r.returncode == 0, r.stderr
     rows = []
     for chunk in RrdReader(str(out)).store().stream():

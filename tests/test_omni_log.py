@@ -9,7 +9,7 @@ import shutil
 
 import numpy as np
 import pytest
-from launcher import DATA, bad_logs_say_one_line, edit_line, wb
+from launcher import DATA, bad_logs_say_one_line, cli, edit_line
 
 import workbench
 from workbench.metrics import diagnosis
@@ -27,7 +27,7 @@ def _export(tmp_path, scenario: str, **settings):
 def test_a_log_runs_from_the_command_line_on_its_own_defaults(tmp_path):
     _, folder = _export(tmp_path, "paper", duration=40.0)
     out, m = tmp_path / "log.rrd", tmp_path / "log.json"
-    r = wb("omni", "--scenario", "log", "--data", str(folder), "--out", str(out), "--metrics", str(m))
+    r = cli("omni", "--scenario", "log", "--data", str(folder), "--out", str(out), "--metrics", str(m))
     assert r.returncode == 0, r.stderr
     stats = json.loads(m.read_text())
     assert stats["scenario"] == "log" and set(stats["estimators"]) >= {"ekf", "isam2", "gtsam-batch"}

@@ -395,7 +395,7 @@ def test_a_quirky_real_log_runs_with_its_repairs_said(tmp_path):
     import json
     import shutil
 
-    from launcher import cli, wb
+    from launcher import cli
 
     d = tmp_path / "quirky"
     d.mkdir()
@@ -404,8 +404,8 @@ def test_a_quirky_real_log_runs_with_its_repairs_said(tmp_path):
     lines = (MRCLAM / "Robot1_Odometry.dat").read_text().splitlines(keepends=True)
     head, rows = lines[:4], lines[4:]
     (d / "Robot1_Odometry.dat").write_text("".join(head + [rows[1], rows[0]] + rows[2:] + ["1248273512.1 0.1"]))
-    r = wb("omni", "--scenario", "mrclam", "--data", str(d), "--robot", "1", "--end-time", "60",
-           "--estimators", "odometry,ekf", "--out", str(tmp_path / "q.rrd"), "--metrics", str(tmp_path / "q.json"))
+    r = cli("omni", "--scenario", "mrclam", "--data", str(d), "--robot", "1", "--end-time", "60",
+            "--estimators", "odometry,ekf", "--out", str(tmp_path / "q.rrd"), "--metrics", str(tmp_path / "q.json"))
     assert r.returncode == 0, r.stderr
     assert "warning: Robot1_Odometry.dat: 2 row(s) out of time order" in r.stderr
     assert "warning: Robot1_Odometry.dat: line" in r.stderr and "cut short" in r.stderr

@@ -12,7 +12,7 @@ import textwrap
 
 import numpy as np
 import pytest
-from launcher import wb
+from launcher import cli, wb
 
 import workbench
 from workbench.core import estimator as plugins
@@ -95,7 +95,7 @@ def plugin(tmp_path_factory):
 
 def _run(tmp_path, experiment, *args):
     out, m = tmp_path / "r.rrd", tmp_path / "m.json"
-    r = wb(experiment, "--out", str(out), "--metrics", str(m), *args)
+    r = cli(experiment, "--out", str(out), "--metrics", str(m), *args)
     return r, out, (json.loads(m.read_text()) if m.exists() else None)
 
 

@@ -30,14 +30,14 @@ def recorded(tmp_path_factory):
     out = {}
     for name, args in CASES.items():
         path = d / f"{name}.rrd"
-        r = wb(name, *args, "--out", str(path))
+        r = cli(name, *args, "--out", str(path))
         assert r.returncode == 0, r.stderr
         out[name] = path
     return out
 
 
 def test_info_says_what_made_it(recorded):
-    r = wb("info", str(recorded["sea"]))
+    r = cli("info", str(recorded["sea"]))
     assert r.returncode == 0, r.stderr
     assert f"made by:   workbench sea --runs 2 --duration 10 --out {recorded['sea']}" in r.stdout
     assert "a recording of sea (paper), 2 run(s), seed 0" in r.stdout and "with workbench 0.1.0, commit" in r.stdout
@@ -50,7 +50,7 @@ def test_info_says_what_made_it(recorded):
 @pytest.mark.parametrize("name", list(CASES))
 def test_replay_reproduces(recorded, name):
     """On the machine that made it, a run is deterministic: the same bits."""
-    r = wb("replay", str(recorded[name]))
+    r = cli("replay", str(recorded[name]))
     assert r.returncode == 0, r.stdout + r.stderr
     assert "reproduces: the same bits, all " in r.stdout and "another machine" not in r.stdout, r.stdout
     compared = int(r.stdout.split("the same bits, all ")[1].split()[0])
@@ -100,9 +100,9 @@ def test_a_plugin_recording_replays(tmp_path):
     plugin.write_text("from workbench.experiments.sea.estimate import Estimate\n\n"
                       "def nudged(data, cfg):\n    return Estimate(position=data.target[:, :2] + [0.5, 0.0])\n")
     path = tmp_path / "p.rrd"
-    r = wb("sea", "--runs", "2", "--duration", "10", "--estimators", f"ekf,{plugin}:nudged", "--out", str(path))
+    r = cli("sea", "--runs", "2", "--duration", "10", "--estimators", f"ekf,{plugin}:nudged", "--out", str(path))
     assert r.returncode == 0, r.stderr
-    r = wb("replay", str(path))
+    r = cli("replay", str(path))
     assert r.returncode == 0 and "reproduces" in r.stdout, r.stdout + r.stderr
 
 
@@ -114,7 +114,7 @@ def test_an_altered_config_is_caught(recorded, tmp_path):
     path = tmp_path / "altered.rrd"
     with stream.recording(path, "sea", altered, stored.seed, rrb.Blueprint(), metrics=stored.metrics):
         pass
-    r = wb("replay", str(path))
+    r = cli("replay", str(path))
     assert r.returncode == 1, r.stdout + r.stderr
     assert "does not reproduce" in r.stdout and "in estimators.rls (" in r.stdout and "\n  estimators.rls." in r.stdout
     assert "estimators.ekf" not in r.stdout and "estimators.geometric" not in r.stdout
@@ -196,7 +196,7 @@ def test_recordings_made_before_the_keys_were_renamed_replay(experiment):
             assert "reproduces to floating point: all " in said or "reproduces, but for estimators" in said, said
             compared = int(said.split(" of " if "reproduces, but" in said else "all ")[1].split(" numbers")[0])
             assert compared > 100, said
-    info = wb("info", str(path))
+    info = cli("info", str(path))
     assert info.returncode == 0 and "| estimator |" in info.stdout and "machine:   (not stored" in info.stdout, \
         info.stderr
 
@@ -213,8 +213,9 @@ def test_a_changed_default_in_the_code_is_reported(recorded, tmp_path):
     import workbench
 
     copy = tmp_path / "scratch"
-    shutil.copytree(Path(workbench.__file__).parent, copy / "workbench",
-                    ignore=shutil.ignore_patterns("__pycache__"))
+    # with its caches (byte code, numba's machine code: each checked against its source's time
+    # stamp and size, which the copy keeps): only the changed file compiles again
+    shutil.copytree(Path(workbench.__file__).parent, copy / "workbench")
     smoother = copy / "workbench" / "experiments" / "sea" / "algorithms" / "smoother.py"
     text = smoother.read_text()
     assert "RELINEARIZE = (1.0, 1.0)" in text

@@ -15,7 +15,7 @@ ALL = ("geometric", "rls", "window-rls", "ekf", "gtsam", "isam2")
 def recorded(tmp_path_factory):
     d = tmp_path_factory.mktemp("rec")
     out, m = d / "sea.rrd", d / "m.json"
-    r = wb("sea", "--runs", "3", "--seed", "7", "--out", str(out), "--metrics", str(m), "--duration", "20")
+    r = cli("sea", "--runs", "3", "--seed", "7", "--out", str(out), "--metrics", str(m), "--duration", "20")
     assert r.returncode == 0, r.stderr
     return out, json.loads(m.read_text())
 
@@ -52,8 +52,8 @@ def test_metrics_file_shape(recorded):
 def test_same_seed_same_numbers(tmp_path, recorded):
     _, stats = recorded
     m = tmp_path / "m.json"
-    r = wb("sea", "--runs", "3", "--seed", "7", "--out", str(tmp_path / "a.rrd"), "--metrics", str(m),
-           "--duration", "20")
+    r = cli("sea", "--runs", "3", "--seed", "7", "--out", str(tmp_path / "a.rrd"), "--metrics", str(m),
+            "--duration", "20")
     assert r.returncode == 0, r.stderr
     again = json.loads(m.read_text())
     for name in ALL:

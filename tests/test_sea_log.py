@@ -8,7 +8,7 @@ import shutil
 
 import numpy as np
 import pytest
-from launcher import DATA, bad_logs_say_one_line, edit_line, wb
+from launcher import DATA, bad_logs_say_one_line, cli, edit_line
 
 import workbench
 from workbench.io import csvfiles as csvfile
@@ -43,7 +43,7 @@ def test_without_truth_and_with_a_sparse_one(tmp_path):
     shutil.copytree(folder, bare)
     (bare / "truth.csv").unlink()
     out, m = tmp_path / "bare.rrd", tmp_path / "bare.json"
-    r = wb("sea", "--scenario", "log", "--data", str(bare), "--out", str(out), "--metrics", str(m))
+    r = cli("sea", "--scenario", "log", "--data", str(bare), "--out", str(out), "--metrics", str(m))
     assert r.returncode == 0, r.stderr
     stats = json.loads(m.read_text())
     ekf = stats["estimators"]["ekf"]

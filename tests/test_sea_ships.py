@@ -7,7 +7,7 @@ from datetime import datetime, timedelta
 
 import numpy as np
 import pytest
-from launcher import DATA, wb
+from launcher import DATA, cli
 
 import workbench
 from workbench.core.registry import get
@@ -138,8 +138,8 @@ def test_noise_free_angles_give_the_ship_back(ais_file):
 
 def test_cli_every_ship_writes_the_table_and_metrics(ais_file, tmp_path):
     m = tmp_path / "m.json"
-    r = wb("sea", "--scenario", "ais", "--data", str(ais_file), "--mmsi", "all", "--duration", "40",
-           "--estimators", FAST, "--out", str(tmp_path / "s.rrd"), "--metrics", str(m))
+    r = cli("sea", "--scenario", "ais", "--data", str(ais_file), "--mmsi", "all", "--duration", "40",
+            "--estimators", FAST, "--out", str(tmp_path / "s.rrd"), "--metrics", str(m))
     assert r.returncode == 0, r.stderr
     assert "every ship**: 2 ship(s) run" in r.stdout and "2 run(s) in" in r.stdout
     stats = json.loads(m.read_text())
@@ -240,8 +240,8 @@ def test_ais_repairs_reach_the_metrics_and_the_command_line(tmp_path):
     rows = ais_rows()
     path = write(tmp_path / "q.csv", HEADER, [*_swapped(rows), rows[-1][:25]], end="")
     m = tmp_path / "m.json"
-    r = wb("sea", "--scenario", "ais", "--data", str(path), "--mmsi", "all", "--duration", "40",
-           "--estimators", "geometric", "--out", str(tmp_path / "q.rrd"), "--metrics", str(m))
+    r = cli("sea", "--scenario", "ais", "--data", str(path), "--mmsi", "all", "--duration", "40",
+            "--estimators", "geometric", "--out", str(tmp_path / "q.rrd"), "--metrics", str(m))
     assert r.returncode == 0, r.stderr
     assert "warning: q.csv: 2 row(s) out of time order" in r.stderr and "cut short" in r.stderr
     assert json.loads(m.read_text())["data_repairs"] == {"ais_cut_last_line": 1, "ais_reordered": 2}

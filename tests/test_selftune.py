@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 import pytest
-from launcher import cli, wb
+from launcher import cli
 
 import workbench
 from workbench.core import tune_report
@@ -82,8 +82,8 @@ def test_where_the_camera_path_is_the_fixes_own_the_azimuth_is_left():
 
 
 def test_the_command_says_what_it_tuned_and_terrain_says_why_not(tmp_path):
-    r = wb("sea", "--runs", "1", "--duration", "30", "--estimators", "ekf", "--tune-noise",
-           "--out", str(tmp_path / "a.rrd"), "--metrics", str(tmp_path / "a.json"))
+    r = cli("sea", "--runs", "1", "--duration", "30", "--estimators", "ekf", "--tune-noise",
+            "--out", str(tmp_path / "a.rrd"), "--metrics", str(tmp_path / "a.json"))
     assert r.returncode == 0, r.stderr
     assert "tuned noise (the likelihood of ekf's innovations on run 0" in r.stdout
     # the camera's start an offset the fixes measure: both angles' own noise is identified, and tuned

@@ -17,7 +17,7 @@ from pathlib import Path
 import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
-from launcher import cli, ctrl_c_as_a_terminal, wb
+from launcher import cli, ctrl_c_as_a_terminal
 
 from workbench.core.registry import get
 from workbench.errors import WorkbenchError
@@ -146,7 +146,7 @@ def test_a_killed_worker_loses_nothing(tmp_path):
 
 def test_the_report_rebuilds_from_the_parquet_files_alone(tmp_path):
     out = tmp_path / "sw"
-    r = wb("sweep", "sea", "--grid", "window=60,120", "--grid", "order=3,5", "--runs", "3", *SEA, "--out", str(out))
+    r = cli("sweep", "sea", "--grid", "window=60,120", "--grid", "order=3,5", "--runs", "3", *SEA, "--out", str(out))
     assert r.returncode == 0, r.stderr
     assert "### position_rmse (m)" in r.stdout and "12 task(s) on local pool" in r.stdout
     summary = (out / "summary.csv").read_text().splitlines()
@@ -158,7 +158,7 @@ def test_the_report_rebuilds_from_the_parquet_files_alone(tmp_path):
     assert counts["/sweep/window/position_rmse/window-rls"] == 2 and counts["/sweep/order/anees/ekf"] == 2
     colleague = tmp_path / "sent"
     shutil.copytree(out / "tasks", colleague / "tasks")      # the Parquet files, nothing else
-    r = wb("sweep-report", str(colleague))
+    r = cli("sweep-report", str(colleague))
     assert r.returncode == 0, r.stderr
     assert (colleague / "summary.csv").read_text() == (out / "summary.csv").read_text()
     assert (colleague / "summary.md").read_text() == (out / "summary.md").read_text()
@@ -172,17 +172,17 @@ def test_a_plugin_estimator_in_a_sweep(tmp_path):
     plugin.write_text("from workbench.experiments.sea.estimate import Estimate\n\n"
                       "def offset(data, cfg):\n    return Estimate(position=data.target[:, :2] + [3.0, -4.0])\n")
     out = tmp_path / "sw"
-    r = wb("sweep", "sea", "--grid", "sigma-alpha=0.5,1", "--runs", "2", *SEA, "--estimators",
-           f"ekf,{plugin}:offset", "--out", str(out))
+    r = cli("sweep", "sea", "--grid", "sigma-alpha=0.5,1", "--runs", "2", *SEA, "--estimators",
+            f"ekf,{plugin}:offset", "--out", str(out))
     assert r.returncode == 0, r.stderr
     got = rows(out)
     assert all(got[(c, k, "offset", "position_rmse")] == pytest.approx(5.0, rel=1e-12) for c in (0, 1) for k in (0, 1))
 
 
 def test_presets(tmp_path):
-    r = wb("sweep", "terrain", "--list-presets")
+    r = cli("sweep", "terrain", "--list-presets")
     assert r.returncode == 0 and "paper-grid" in r.stdout and "size (3) x max_linear (3)" in r.stdout
-    r = wb("sweep", "sea", "--preset", "ar-models", "--runs", "1", "--set", "duration=8", "--out", str(tmp_path / "p"))
+    r = cli("sweep", "sea", "--preset", "ar-models", "--runs", "1", "--set", "duration=8", "--out", str(tmp_path / "p"))
     assert r.returncode == 0, r.stderr
     assert "27 task(s)" in r.stdout and "| lam | window | order | geometric | rls | window-rls | ekf |" in r.stdout
 
@@ -208,12 +208,12 @@ def test_bad_input_is_one_line_and_exit_2(tmp_path, args, needle):
 def test_an_existing_folder_needs_force_or_resume(tmp_path):
     out = tmp_path / "sw"
     args = ("sweep", "sea", "--grid", "lam=1", "--runs", "1", *SEA, "--out", str(out))
-    assert wb(*args).returncode == 0
+    assert cli(*args).returncode == 0
     r = cli(*args)
     assert r.returncode == 2 and "--resume" in r.stderr and "--force" in r.stderr
     r = cli("sweep", "sea", "--grid", "lam=0.9", "--runs", "1", *SEA, "--out", str(out), "--resume")
     assert r.returncode == 2 and "its grid differ" in r.stderr
-    r = wb(*args, "--force")
+    r = cli(*args, "--force")
     assert r.returncode == 0 and "0 done before, 1 computed" in r.stdout
     (tmp_path / "other").mkdir()
     (tmp_path / "other" / "notes.txt").write_text("mine")

@@ -6,7 +6,7 @@ import shutil
 
 import numpy as np
 import pytest
-from launcher import cli, wb
+from launcher import cli
 
 from workbench.errors import WorkbenchError
 from workbench.experiments.terrain import dem as dem_mod
@@ -26,7 +26,7 @@ def recorded(tmp_path_factory):
     threads have run (the threading layer must survive a fork)."""
     d = tmp_path_factory.mktemp("terrain")
     out, m = d / "t.rrd", d / "m.json"
-    r = wb("terrain", "--runs", "3", "--seed", "4", "--out", str(out), "--metrics", str(m), *SMALL)
+    r = cli("terrain", "--runs", "3", "--seed", "4", "--out", str(out), "--metrics", str(m), *SMALL)
     assert r.returncode == 0, r.stderr
     return d, out, json.loads(m.read_text())
 
@@ -68,8 +68,8 @@ def test_metrics_file_shape_and_reduction(recorded):
 def test_same_seed_same_numbers(recorded, tmp_path):
     _, _, stats = recorded
     m = tmp_path / "m.json"
-    r = wb("terrain", "--runs", "3", "--seed", "4", "--out", str(tmp_path / "t.rrd"), "--metrics", str(m),
-           "--estimators", "recurrent-search,recurrent-search-refined", *SMALL)
+    r = cli("terrain", "--runs", "3", "--seed", "4", "--out", str(tmp_path / "t.rrd"), "--metrics", str(m),
+            "--estimators", "recurrent-search,recurrent-search-refined", *SMALL)
     assert r.returncode == 0, r.stderr
     again = json.loads(m.read_text())
     for name in ("navigation", "recurrent-search", "recurrent-search-refined"):
@@ -79,7 +79,7 @@ def test_same_seed_same_numbers(recorded, tmp_path):
 def test_no_overwrite_without_force(recorded):
     d, out, _ = recorded
     before = out.stat().st_mtime_ns
-    r = wb("terrain", "--out", str(out), *SMALL)
+    r = cli("terrain", "--out", str(out), *SMALL)
     assert r.returncode == 2 and "exists" in r.stderr and len(r.stderr.strip().splitlines()) == 1
     assert out.stat().st_mtime_ns == before
 

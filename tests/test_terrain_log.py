@@ -7,7 +7,7 @@ import json
 
 import numpy as np
 import pytest
-from launcher import DATA, bad_logs_say_one_line, edit_line, wb
+from launcher import DATA, bad_logs_say_one_line, cli, edit_line
 
 import workbench
 
@@ -47,8 +47,8 @@ def test_without_truth(tmp_path):
     res, folder = _export(tmp_path, "synthetic", **FAST)
     (folder / "truth.csv").unlink()
     out, m = tmp_path / "bare.rrd", tmp_path / "bare.json"
-    r = wb("terrain", "--scenario", "log", "--data", str(folder), "--out", str(out), "--metrics", str(m),
-           "--size", "100x100", "--levels-linear", "3", "--levels-angular", "2", "--radiometry", "none")
+    r = cli("terrain", "--scenario", "log", "--data", str(folder), "--out", str(out), "--metrics", str(m),
+            "--size", "100x100", "--levels-linear", "3", "--levels-angular", "2", "--radiometry", "none")
     assert r.returncode == 0, r.stderr
     stats = json.loads(m.read_text())["estimators"]
     assert stats["recurrent-search"]["position_error"] is None

@@ -9,7 +9,7 @@ import shutil
 
 import numpy as np
 import pytest
-from launcher import cli, wb
+from launcher import cli
 from scipy.stats import chi2
 
 from workbench import api
@@ -35,7 +35,7 @@ needs_ngi = pytest.mark.skipif(not (NGI / "dem.tif").is_file(), reason=f"no ngi 
 def written(tmp_path_factory):
     d = tmp_path_factory.mktemp("model")
     out = d / "t.rrd"
-    r = wb("terrain", "--seed", "2", "--out", str(out), "--metrics", str(d / "m.json"), *FAST)
+    r = cli("terrain", "--seed", "2", "--out", str(out), "--metrics", str(d / "m.json"), *FAST)
     assert r.returncode == 0, r.stderr
     res = api.run("terrain", "synthetic", seed=2, estimators="navigation,gtsam-ba")
     return d, out, json.loads((d / "m.json").read_text()), res.first
@@ -259,7 +259,7 @@ def test_recording_shows_measurements(written):
 
 def test_measure_command_prints_values_and_sigmas(written):
     d, _, _, _ = written
-    r = wb("measure", str(d / "t.model"), "--point", "100,100", "--line", "10,10:190,190", "--json")
+    r = cli("measure", str(d / "t.model"), "--point", "100,100", "--line", "10,10:190,190", "--json")
     assert r.returncode == 0, r.stderr
     found = json.loads(r.stdout)
     model = tm.load(d / "t.model")
@@ -267,7 +267,7 @@ def test_measure_command_prints_values_and_sigmas(written):
     assert found[1]["quantities"]["distance"]["value"] == pytest.approx(expect.quantities[0].value)
     assert found[1]["quantities"]["distance"]["sigma"] == pytest.approx(expect.quantities[0].sigma)
     assert found[0]["quantities"]["H"]["sigma"] > 0
-    text = wb("measure", str(d / "t.model"), "--polygon", "30,30:170,40:160,170").stdout
+    text = cli("measure", str(d / "t.model"), "--polygon", "30,30:170,40:160,170").stdout
     assert text.startswith("polygon (30, 30) -> (170, 40) -> (160, 170): area ") and " +- " in text
 
 
@@ -298,7 +298,7 @@ def test_missing_or_foreign_model_files_are_refused(written, tmp_path):
     assert r.returncode == 2 and "no model.json" in r.stderr
     # another run's model.npz dropped into this folder
     other = tmp_path / "other"
-    assert wb("terrain", "--seed", "3", "--out", str(other / "o.rrd"), *FAST).returncode == 0
+    assert cli("terrain", "--seed", "3", "--out", str(other / "o.rrd"), *FAST).returncode == 0
     mine = tmp_path / "mine"
     shutil.copytree(d / "t.model", mine)
     shutil.copy(other / "o.model" / "model.npz", mine / "model.npz")
@@ -310,5 +310,5 @@ def test_missing_or_foreign_model_files_are_refused(written, tmp_path):
     with pytest.raises(WorkbenchError, match="orthophoto.tif is missing"):
         tm.load(mine)
     # and without --force a run does not overwrite a model folder
-    r = wb("terrain", "--seed", "3", "--out", str(other / "again.rrd"), "--model", str(other / "o.model"), *FAST)
+    r = cli("terrain", "--seed", "3", "--out", str(other / "again.rrd"), "--model", str(other / "o.model"), *FAST)
     assert r.returncode == 2 and "exists" in r.stderr and not (other / "again.rrd").exists()

@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from launcher import DATA, cli, wb
+from launcher import DATA, cli
 
 import workbench
 from workbench.core.registry import get
@@ -405,8 +405,8 @@ def test_a_bom_ais_file_runs_through_the_command_line(tmp_path):
     path = tmp_path / "bom.csv"
     path.write_bytes(b"\xef\xbb\xbf" + ais_text("written").replace("\n", "\r\n").encode())
     m = tmp_path / "m.json"
-    r = wb("sea", "--scenario", "ais", "--data", str(path), "--mmsi", "235001", "--duration", "60", "--estimators",
-           "geometric", "--out", str(tmp_path / "b.rrd"), "--metrics", str(m))
+    r = cli("sea", "--scenario", "ais", "--data", str(path), "--mmsi", "235001", "--duration", "60", "--estimators",
+            "geometric", "--out", str(tmp_path / "b.rrd"), "--metrics", str(m))
     assert r.returncode == 0, r.stderr
     assert "bom.csv: a UTF-8 byte-order mark: read past" in r.stderr
     assert json.loads(m.read_text())["data_repairs"] == {"ais_bom": 1}

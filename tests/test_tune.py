@@ -13,7 +13,7 @@ import tomllib
 import numpy as np
 import pyarrow.parquet as pq
 import pytest
-from launcher import cli, wb
+from launcher import cli
 
 from workbench.tuning import files as studies
 
@@ -28,8 +28,8 @@ def trials_of(folder) -> list[tuple]:
 
 def test_a_study_writes_its_report_and_best_toml_runs(tmp_path):
     out = tmp_path / "study"
-    r = wb("tune", "sea", "--param", "sigma-acc=0.01:1:log", "--trials", "6", "--batch", "3", "--jobs", "1",
-           "--out", str(out), *SMALL)
+    r = cli("tune", "sea", "--param", "sigma-acc=0.01:1:log", "--trials", "6", "--batch", "3", "--jobs", "1",
+            "--out", str(out), *SMALL)
     assert r.returncode == 0, r.stderr
     assert "tuned as what the estimators assume (assume_sigma_acc)" in r.stderr
     got = trials_of(out)
@@ -51,8 +51,8 @@ def test_a_study_writes_its_report_and_best_toml_runs(tmp_path):
 
     t, v = readback.series(out / "study.rrd", "/objective/trial", timeline="trial")
     assert np.allclose(t * 1e9, [g[0] for g in got]) and np.allclose(v, [g[3] for g in got])  # (a sequence, read as ns)
-    again = wb("sea", "--config", str(out / "best.toml"), "--estimators", "ekf", "--runs", "2",
-               "--out", str(tmp_path / "best.rrd"), "--metrics", str(tmp_path / "best.json"))
+    again = cli("sea", "--config", str(out / "best.toml"), "--estimators", "ekf", "--runs", "2",
+                "--out", str(tmp_path / "best.rrd"), "--metrics", str(tmp_path / "best.json"))
     assert again.returncode == 0, again.stderr
     m = json.loads((tmp_path / "best.json").read_text())
     assert m["config"]["assume_sigma_acc"] == best[2]["assume_sigma_acc"]
@@ -63,7 +63,7 @@ def test_a_killed_study_resumes_to_the_same_trials(tmp_path):
     args = ("tune", "sea", "--param", "sigma-acc=0.01:1:log", "--param", "sigma-alpha=0.3:3:log", "--trials", "8",
             "--batch", "4", "--jobs", "1", *SMALL)
     whole = tmp_path / "whole"
-    assert wb(*args, "--out", str(whole)).returncode == 0
+    assert cli(*args, "--out", str(whole)).returncode == 0
     killed = tmp_path / "killed"
     proc = subprocess.Popen([sys.executable, "-m", "workbench", *args, "--out", str(killed)],
                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
@@ -74,7 +74,7 @@ def test_a_killed_study_resumes_to_the_same_trials(tmp_path):
     proc.wait()
     before = trials_of(killed)
     assert any(t[1] == "RUNNING" for t in before) and len(before) < 8 + 1
-    r = wb(*args, "--out", str(killed), "--resume")
+    r = cli(*args, "--out", str(killed), "--resume")
     assert r.returncode == 0, r.stderr
     a, b = trials_of(whole), trials_of(killed)
     assert [t[0] for t in b] == list(range(8))                  # every trial once, none lost
@@ -84,8 +84,8 @@ def test_a_killed_study_resumes_to_the_same_trials(tmp_path):
 
 def test_the_pool_and_a_local_cluster_give_the_same_trials(tmp_path):
     args = ("tune", "sea", "--param", "sigma-acc=0.01:1:log", "--trials", "4", "--batch", "2", *SMALL)
-    assert wb(*args, "--jobs", "2", "--out", str(tmp_path / "pool")).returncode == 0
-    r = wb(*args, "--local-cluster", "2", "--out", str(tmp_path / "dask"))
+    assert cli(*args, "--jobs", "2", "--out", str(tmp_path / "pool")).returncode == 0
+    r = cli(*args, "--local-cluster", "2", "--out", str(tmp_path / "dask"))
     assert r.returncode == 0, r.stderr
     assert "local Dask cluster (2 workers)" in r.stdout
     assert trials_of(tmp_path / "pool") == trials_of(tmp_path / "dask")
@@ -114,8 +114,8 @@ def test_bad_input_is_one_line_and_touches_nothing(tmp_path, args, said):
 
 def test_a_resume_with_another_space_or_an_objective_needing_truth_touches_nothing(tmp_path):
     out = tmp_path / "study"
-    assert wb("tune", "sea", "--param", "sigma-acc=0.01:1:log", "--trials", "2", "--batch", "2", "--jobs", "1",
-              "--out", str(out), *SMALL).returncode == 0
+    assert cli("tune", "sea", "--param", "sigma-acc=0.01:1:log", "--trials", "2", "--batch", "2", "--jobs", "1",
+               "--out", str(out), *SMALL).returncode == 0
     listing = {p: p.stat().st_mtime_ns for p in out.rglob("*")}
     r = cli("tune", "sea", "--param", "sigma-acc=0.01:2:log", "--trials", "2", "--batch", "2", "--jobs", "1",
            "--out", str(out), "--resume", *SMALL)
@@ -123,13 +123,13 @@ def test_a_resume_with_another_space_or_an_objective_needing_truth_touches_nothi
     assert {p: p.stat().st_mtime_ns for p in out.rglob("*")} == listing
     # a log without truth: the NEES needs the truth
     log = tmp_path / "log"
-    assert wb("sea", "--duration", "20", "--export-data", str(log), "--out", str(tmp_path / "x.rrd")).returncode == 0
+    assert cli("sea", "--duration", "20", "--export-data", str(log), "--out", str(tmp_path / "x.rrd")).returncode == 0
     (log / "truth.csv").unlink()
     r = cli("tune", "sea", "--scenario", "log", "--set", f"data={log}", "--param", "sigma-acc=0.01:1:log",
            "--objective", "nees", "--trials", "2", "--out", str(tmp_path / "t2"))
     assert r.returncode == 2 and "--objective nees needs the truth" in r.stderr, r.stderr
     assert not (tmp_path / "t2").exists()
-    r = wb("tune", "sea", "--scenario", "log", "--set", f"data={log}", "--param", "sigma-acc=0.01:1:log",
-           "--trials", "2", "--batch", "2", "--jobs", "1", "--runs", "1", "--out", str(tmp_path / "t3"))
+    r = cli("tune", "sea", "--scenario", "log", "--set", f"data={log}", "--param", "sigma-acc=0.01:1:log",
+            "--trials", "2", "--batch", "2", "--jobs", "1", "--runs", "1", "--out", str(tmp_path / "t3"))
     assert r.returncode == 0, r.stderr                         # by likelihood it needs none
     assert np.isfinite([t[3] for t in trials_of(tmp_path / "t3")]).all()
