@@ -31,30 +31,29 @@ def test_kalman_filter_and_rts_smoother_attain_their_bounds():
     assert np.array_equal(again, filt) and np.array_equal(bounds.smoothing(filt, F, Q, predicted), smooth)
     rng = np.random.default_rng(7)
     N = 4000
-    ef, es = np.zeros((N, T, 2)), np.zeros((N, T, 2))
-    for i in range(N):
-        x = rng.multivariate_normal([0.0, 1.0], P0)
-        xs, zs = [], []
-        for k in range(T):
-            if k:
-                x = F @ x + rng.multivariate_normal([0.0, 0.0], Q)
-            xs.append(x)
-            zs.append(H @ x + rng.normal(0.0, np.sqrt(R[0, 0]), 1))
-        m, P = np.array([0.0, 1.0]), P0.copy()
-        means, covs, preds = [], [], []
-        for k in range(T):
-            if k:
-                m, P = kalman.predict(m, P, F, Q)
-            preds.append((m, P))
-            m, P, _ = kalman.update(m, P, zs[k] - H @ m, H, R)
-            means.append(m)
-            covs.append(P)
-        sm = [means[-1]]
-        for k in range(T - 2, -1, -1):
-            mp, Pp = F @ means[k], F @ covs[k] @ F.T + Q
-            C = covs[k] @ F.T @ np.linalg.inv(Pp)
-            sm.insert(0, means[k] + C @ (sm[0] - mp))
-        ef[i], es[i] = np.array(xs) - np.array(means), np.array(xs) - np.array(sm)
+    # the N runs side by side: each state a column of (2, N), which kalman.predict and update take as they are
+    x = rng.multivariate_normal([0.0, 1.0], P0, size=N).T
+    xs, zs = [], []
+    for k in range(T):
+        if k:
+            x = F @ x + rng.multivariate_normal([0.0, 0.0], Q, size=N).T
+        xs.append(x)
+        zs.append(H @ x + rng.normal(0.0, np.sqrt(R[0, 0]), (1, N)))
+    m, P = np.repeat(np.array([[0.0], [1.0]]), N, axis=1), P0.copy()
+    means, covs = [], []
+    for k in range(T):
+        if k:
+            m, P = kalman.predict(m, P, F, Q)
+        m, P, _ = kalman.update(m, P, zs[k] - H @ m, H, R)
+        means.append(m)
+        covs.append(P)
+    sm = [means[-1]]
+    for k in range(T - 2, -1, -1):
+        mp, Pp = F @ means[k], F @ covs[k] @ F.T + Q
+        C = covs[k] @ F.T @ np.linalg.inv(Pp)
+        sm.insert(0, means[k] + C @ (sm[0] - mp))
+    truth = np.stack(xs).transpose(2, 0, 1)                          # (N, T, 2)
+    ef, es = truth - np.stack(means).transpose(2, 0, 1), truth - np.stack(sm).transpose(2, 0, 1)
     tol = 4 * np.sqrt(2 / N)  # the relative Monte Carlo error of a variance, four sigmas
     for errors, bound in ((ef, filt), (es, smooth)):
         mse = (errors**2).mean(axis=0)
