@@ -7,7 +7,9 @@ its answer by group (:class:`~workbench.estimation.consistency.Residuals`), the 
 innovations and a causal estimator's disagreement with the run's smoother. The runs' evidence is
 pooled and read (:func:`diagnose`), in this order:
 
-1. **not enough data to say**: fewer than :data:`MIN_ROWS` measurements with a figure;
+1. **not enough data to say**: fewer than :data:`MIN_ROWS` measurements with a figure; **undecided**,
+   whatever the figures, where the estimate says its data did not choose between two answers far
+   apart (``undecided``: the batch's, :mod:`workbench.experiments.omni.algorithms.graph.undecided`);
 2. **outliers / heavy tails**: a heavy tail the likelihood ratio keeps (p < :data:`ALPHA`), holding
    at least :data:`TAIL_FIRST` and at most :data:`OUTLIER_MAX` of the measurements (a larger one is
    the noise being wrong), with the share beyond the gate against the Gaussian's and the core's
@@ -81,8 +83,7 @@ BASIN = 0.999
 """A causal estimator is in another basin than the smoother where its median disagreement is over
 this point of its chi-square."""
 VERDICTS = ("consistent", "overconfident", "conservative", "too narrow", "too wide", "outliers", "wrong basin",
-            "left out", "correlated",
-            "not enough data")
+            "left out", "correlated", "not enough data", "undecided")
 
 
 @dataclass
@@ -109,6 +110,7 @@ class Evidence:
     unmapped: list[float] = field(default_factory=list)  # [measurements of what the map does not hold, all]
     iterated: list[dict[str, float]] = field(default_factory=list)  # each run's iterated variance components
     remarks: list[str] = field(default_factory=list)  # what the estimator says went wrong (each run's, once)
+    undecided: list[dict] = field(default_factory=list)  # each run's choice its data did not make ("said": in words)
 
 
 def _censor(kept: np.ndarray, q: np.ndarray, dof: np.ndarray, gate: float | None) -> np.ndarray:
@@ -169,6 +171,7 @@ def evidence(estimate: Any, metrics: Mapping[str, Any] | None = None, dimension:
     else:
         return None
     ev.remarks = [str(r) for r in getattr(estimate, "remarks", None) or ()]
+    ev.undecided = [u] if (u := getattr(estimate, "undecided", None)) else []
     if isinstance(res, Residuals) and (bad := res.contradicted()):
         # (a landmark's own bearings rejecting its place: :mod:`workbench.experiments.omni.placed`)
         ev.remarks.append(f"{len(bad)} of {len(res.missed())} landmarks rejected by their own measurements: most of "
@@ -221,7 +224,7 @@ def pool(items: list[Evidence]) -> Evidence | None:
     return Evidence(items[0].kind, cat("q"), cat("dof"), cat("kept"), cat("share"), cat("censor"), items[0].gate,
                     groups, [w for e in items for w in e.whiteness], np.concatenate(dis) if dis else None,
                     items[0].dimension, unmapped, [d for e in items for d in e.iterated],
-                    list(dict.fromkeys(r for e in items for r in e.remarks)))
+                    list(dict.fromkeys(r for e in items for r in e.remarks)), [u for e in items for u in e.undecided])
 
 
 def _outside(value: float | None, interval: tuple[float, float] | None) -> int:
@@ -250,6 +253,9 @@ def diagnose(ev: Evidence | None, names: Mapping[str, str] | None = None) -> dic
         found["remarks"] = list(ev.remarks)
         found["reason"] = "; ".join(ev.remarks) + "; " + found["reason"]
         found["consistent"] = False
+    if found is not None and ev.undecided:  # two answers fit alike, far apart: the data chose neither
+        found.update(verdict="undecided", undecided=ev.undecided[0], consistent=None,
+                     reason=f"{len(ev.undecided)} run(s): {ev.undecided[0]['said']}; " + found["reason"])
     return found
 
 

@@ -39,7 +39,8 @@ class SlamEstimate:
     ``residuals``: a smoother's residuals at its answer by group with their redundancies
     (:class:`~workbench.estimation.consistency.Residuals`: its truth-free diagnosis reads them).
     ``remarks``: what went wrong that the numbers do not show (iSAM2 given up), which leads its
-    diagnosis's reason.
+    diagnosis's reason. ``undecided``: where two of its answers fit the data alike and lie far apart
+    (:func:`.algorithms.graph.undecided.between`): its diagnosis is then "undecided".
     """
 
     name: str = ""
@@ -63,6 +64,7 @@ class SlamEstimate:
     fit: tuple[float, int] | None = None  # a least-squares smoother's residual chi-square and its dof
     residuals: Residuals | None = None  # a smoother's residuals at its answer by group, for its diagnosis
     remarks: list[str] = field(default_factory=list)  # what went wrong, in its own words (leads its diagnosis)
+    undecided: dict | None = None  # where the data did not choose among its answers (graph.undecided)
 
     @property
     def gated(self) -> int:

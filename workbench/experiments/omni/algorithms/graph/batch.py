@@ -11,6 +11,7 @@ import numpy as np
 from gtsam.symbol_shorthand import L, X
 
 from workbench.experiments.omni.algorithms import residuals
+from workbench.experiments.omni.algorithms.graph import undecided
 from workbench.experiments.omni.algorithms.graph.gating import (
     _bearing_test,
     gate_of,
@@ -69,17 +70,26 @@ def batch(data: OmniData, cfg: OmniConfig, kf: Keyframes | None = None,
                for i, one in solved.items()}
     costs = {i: robust_cost(data, cfg, kf, one[0], one[1].inserted) for i, one in settled.items()}
     won = min(settled, key=lambda i: (costs[i], i))  # the first listed on a tie
+    answers = {i: _answer(len(data.landmarks), E, one) for i, one in settled.items()}
     result, marks, rejected, first_seen, init_step, graph, lm_cov, covs = settled[won]
-    poses = np.array([_pose(result.atPose2(X(e))) for e in range(E)])
-    mean = np.full((len(data.landmarks), 2), np.nan)
-    for lm in np.flatnonzero(marks.inserted):
-        mean[lm] = result.atPoint2(L(int(lm)))
-    return SlamEstimate("gtsam-batch", kf.steps.copy(), poses, to_world(covs, poses[:, 2]),
+    poses, world, mean, _ = answers[won]
+    chi2 = fit(graph, result, E, int(marks.inserted.sum()))
+    return SlamEstimate("gtsam-batch", kf.steps.copy(), poses, world,
                         np.array([kf.steps[-1]]), mean[None], lm_cov[None], first_seen, init_step,
                         gated_bearings=gated_indices(data, kf, rejected), start=starts[won].name,
-                        start_costs={starts[i].name: float(c) for i, c in costs.items()},
-                        fit=fit(graph, result, E, int(marks.inserted.sum())),
-                        residuals=residuals.of_graph(graph, result, kf, marks.inserted, rejected, cfg.nis_gate or None))
+                        start_costs={starts[i].name: float(c) for i, c in costs.items()}, fit=chi2,
+                        residuals=residuals.of_graph(graph, result, kf, marks.inserted, rejected, cfg.nis_gate or None),
+                        undecided=undecided.between({i: starts[i].name for i in settled}, costs, won, chi2, answers))
+
+
+def _answer(landmarks: int, E: int, settled: tuple) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """A settled start's ``(poses, their world covariances, landmarks (NaN: unmapped), theirs)``."""
+    result, marks, *_, lm_cov, covs = settled
+    poses = np.array([_pose(result.atPose2(X(e))) for e in range(E)])
+    mean = np.full((landmarks, 2), np.nan)
+    for lm in np.flatnonzero(marks.inserted):
+        mean[lm] = result.atPoint2(L(int(lm)))
+    return poses, to_world(covs, poses[:, 2]), mean, lm_cov
 
 
 def _settle(data: OmniData, cfg: OmniConfig, kf: Keyframes, result: gtsam.Values, marks: _Landmarks,
