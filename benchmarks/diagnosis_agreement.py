@@ -108,20 +108,11 @@ def _turned(data, cfg, how: str):
     about the start, and from nothing else (no start of lower cost to fall back on)."""
     import numpy as np
 
+    from workbench.experiments.omni import faults
     from workbench.experiments.omni.algorithms import graph
 
     kf = graph.keyframes(data, cfg)
-    dr = kf.dead_reckoning.copy()
-    x0, y0, h = dr[0]
-    c, s = math.cos(h), math.sin(h)
-    rel = dr[:, :2] - [x0, y0]
-    u, v = rel @ [c, s], rel @ [-s, c]  # along and across the start's heading
-    if how == "mirrored":
-        v, phi = -v, 2 * h - dr[:, 2]
-    else:
-        u, v, phi = -v, u, dr[:, 2] + math.pi / 2
-    poses = np.column_stack([x0 + c * u - s * v, y0 + s * u + c * v, phi])
-    poses[0] = dr[0]
+    poses = faults.turned(kf.dead_reckoning, how)
     start = graph.Start(how, poses, np.full((len(data.landmarks), 2), np.nan), set())
     return graph.batch(data, cfg, kf, starts=[start])
 

@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from workbench import api
+from workbench.experiments.omni import faults
 from workbench.experiments.omni.algorithms import graph
 from workbench.experiments.omni.algorithms.graph import starts, undecided
 from workbench.experiments.omni.run import assumed, make_data
@@ -74,12 +75,7 @@ def paper():
     data = assumed(make_data(cfg, 0), cfg)
     kf = graph.keyframes(data, cfg)
     dr = kf.dead_reckoning.copy()
-    x0, y0, h = dr[0]
-    c, s = math.cos(h), math.sin(h)
-    rel = dr[:, :2] - [x0, y0]
-    u, v = rel @ [c, s], -(rel @ [-s, c])
-    mirrored = np.column_stack([x0 + c * u - s * v, y0 + s * u + c * v, 2 * h - dr[:, 2]])
-    mirrored[0] = dr[0]
+    mirrored = faults.turned(dr, "mirrored")
     nan = np.full((len(data.landmarks), 2), np.nan)
     return cfg, data, kf, [starts.Start("odometry", dr, nan, set()), starts.Start("mirrored", mirrored, nan, set())]
 

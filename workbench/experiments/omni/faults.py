@@ -137,3 +137,20 @@ def write(folder: Path, f: Faults = Faults(), force: bool = False) -> list[Path]
             "start": sim["poses"][0].tolist(), "start_cov": (np.diag([0.01, 0.01, math.radians(0.5)]) ** 2).tolist(),
             "max_range_m": f.max_range, "label": f"synthetic drive with faults (seed {f.seed})"}
     return logfiles.write(Path(folder), files, meta, force)
+
+
+def turned(poses: np.ndarray, how: str) -> np.ndarray:
+    """A wrong start for a smoother (the faults' grid, issue 34): the trajectory ``poses (E, 3)``
+    mirrored about its first pose's heading (``"mirrored"``) or rotated 90 deg about its first
+    pose (``"rotated"``), the first pose kept."""
+    x0, y0, h = poses[0]
+    c, s = math.cos(h), math.sin(h)
+    rel = poses[:, :2] - [x0, y0]
+    u, v = rel @ [c, s], rel @ [-s, c]  # along and across the start's heading
+    if how == "mirrored":
+        v, phi = -v, 2 * h - poses[:, 2]
+    else:
+        u, v, phi = -v, u, poses[:, 2] + math.pi / 2
+    out = np.column_stack([x0 + c * u - s * v, y0 + s * u + c * v, phi])
+    out[0] = poses[0]
+    return out

@@ -19,7 +19,14 @@ from workbench.experiments.omni.algorithms.graph.gating import (
     gated_indices,
     robust_cost,
 )
-from workbench.experiments.omni.algorithms.graph.keyframes import Keyframes, _lm_params, _pose, keyframes, to_world
+from workbench.experiments.omni.algorithms.graph.keyframes import (
+    Keyframes,
+    _lm_params,
+    _pose,
+    keyframes,
+    poses_of,
+    to_world,
+)
 from workbench.experiments.omni.algorithms.graph.landmarks import (
     AGREEING,
     CHANCE,
@@ -85,7 +92,7 @@ def batch(data: OmniData, cfg: OmniConfig, kf: Keyframes | None = None,
 def _answer(landmarks: int, E: int, settled: tuple) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """A settled start's ``(poses, their world covariances, landmarks (NaN: unmapped), theirs)``."""
     result, marks, *_, lm_cov, covs = settled
-    poses = np.array([_pose(result.atPose2(X(e))) for e in range(E)])
+    poses = poses_of(result, E)
     mean = np.full((landmarks, 2), np.nan)
     for lm in np.flatnonzero(marks.inserted):
         mean[lm] = result.atPoint2(L(int(lm)))
@@ -119,7 +126,7 @@ def _settle(data: OmniData, cfg: OmniConfig, kf: Keyframes, result: gtsam.Values
     for _ in range(REGATE_ROUNDS if gating_on else 0):
         again = _regate(data, cfg, kf, result, covs, lm_cov, marks.inserted) | set(kept_out)
         rays = _rays(kf, marks)
-        smoothed = np.array([_pose(result.atPose2(X(e))) for e in range(E)])  # held through the round
+        smoothed = poses_of(result, E)  # held through the round
         again, moved = _relocate(data, cfg, rays, marks, again, result, smoothed, _contradicted(kf, marks, result))
         again, cut = _snoop(data, rays, again, result, smoothed)
         again, ghosts = _ghosts(data, cfg, rays, again)

@@ -11,12 +11,12 @@ from collections.abc import Callable
 
 import gtsam
 import numpy as np
-from gtsam.symbol_shorthand import L, X
+from gtsam.symbol_shorthand import L
 
 from workbench.estimation import outliers
 from workbench.estimation.angles import wrap
 from workbench.estimation.metrics import chi2_quantile
-from workbench.experiments.omni.algorithms.graph.keyframes import Keyframes, _odometry_graph, _pose
+from workbench.experiments.omni.algorithms.graph.keyframes import Keyframes, _odometry_graph, poses_of
 from workbench.experiments.omni.algorithms.graph.landmarks import AGREEING
 from workbench.experiments.omni.config import OmniConfig
 from workbench.experiments.omni.scenario import OmniData
@@ -78,7 +78,7 @@ def robust_cost(data: OmniData, cfg: OmniConfig, kf: Keyframes, result: gtsam.Va
     mapped = inserted[lm]
     r2 = gate.copy()  # a bearing of a landmark not in the map counts at the gate
     if mapped.any():
-        pose = np.array([_pose(result.atPose2(X(k))) for k in range(len(kf.steps))])[e[mapped]]
+        pose = poses_of(result, len(kf.steps))[e[mapped]]
         points = {k: result.atPoint2(L(k)) for k in np.unique(lm[mapped]).tolist()}
         d = np.array([points[k] for k in lm[mapped].tolist()]) - pose[:, :2]
         r = wrap(b[mapped] - (np.arctan2(d[:, 1], d[:, 0]) - pose[:, 2]))

@@ -11,11 +11,11 @@ from __future__ import annotations
 
 import gtsam
 import numpy as np
-from gtsam.symbol_shorthand import L, X
+from gtsam.symbol_shorthand import L
 
 from workbench.estimation.metrics import chi2_quantile
 from workbench.experiments.omni.algorithms.graph.gating import gate_of
-from workbench.experiments.omni.algorithms.graph.keyframes import Keyframes, _lm_params, _pose
+from workbench.experiments.omni.algorithms.graph.keyframes import Keyframes, _lm_params, poses_of
 from workbench.experiments.omni.algorithms.graph.landmarks import _batch_graph, _Landmarks
 from workbench.experiments.omni.config import OmniConfig
 from workbench.experiments.omni.scenario import OmniData
@@ -55,7 +55,7 @@ def refine(data: OmniData, cfg: OmniConfig, kf: Keyframes, result: gtsam.Values,
     answer = optimizer.optimize()
     weights = np.asarray(optimizer.getWeights())
     out = set(rejected) | {keys[i] for i, b in enumerate(bearing) if b and weights[i] < 0.5}
-    poses = np.array([_pose(answer.atPose2(X(e))) for e in range(len(kf.steps))])
+    poses = poses_of(answer, len(kf.steps))
     landmarks = np.full((len(data.landmarks), 2), np.nan)
     for lm in np.flatnonzero(marks.inserted):
         landmarks[lm] = answer.atPoint2(L(int(lm)))

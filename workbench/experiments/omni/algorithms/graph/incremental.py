@@ -24,6 +24,7 @@ from workbench.experiments.omni.algorithms.graph.keyframes import (
     _pose,
     _prior,
     compose_cov,
+    poses_of,
     to_world,
 )
 from workbench.experiments.omni.algorithms.graph.landmarks import _Landmarks
@@ -430,7 +431,7 @@ class _Incremental:
         """The whole trajectory ``(E, 3)`` and map ``(N, 2)`` (NaN: not in the graph) as
         :meth:`values` has them."""
         values = self.values()
-        poses = np.array([_pose(values.atPose2(X(k))) for k in range(self.done + 1)])
+        poses = poses_of(values, self.done + 1)
         points = np.full((len(self.data.landmarks), 2), np.nan)
         for lm in self.points:
             points[lm] = values.atPoint2(L(lm))

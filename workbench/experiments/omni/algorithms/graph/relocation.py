@@ -29,7 +29,7 @@ from gtsam.symbol_shorthand import L, X
 
 from workbench.estimation.metrics import chi2_quantile
 from workbench.experiments.omni.algorithms.graph.gating import gate_of
-from workbench.experiments.omni.algorithms.graph.keyframes import _lm_params, _pose
+from workbench.experiments.omni.algorithms.graph.keyframes import _lm_params, _pose, poses_of
 from workbench.experiments.omni.algorithms.graph.landmarks import AGREEING, _Landmarks, _residuals, consensus
 from workbench.experiments.omni.config import OmniConfig
 from workbench.experiments.omni.scenario import OmniData
@@ -67,7 +67,7 @@ def relocate(inc: Any, e: int, lm: int) -> bool:
     except RuntimeError:
         return False
     values = gtsam.Values(stayed)
-    smoothed = np.array([_pose(values.atPose2(X(k))) for k in range(e + 1)])
+    smoothed = poses_of(values, e + 1)
     _, moved = _relocate(inc.data, inc.cfg, {lm: rays}, inc.marks, inc.rejected, values, smoothed)
     if not moved:
         return False
