@@ -19,7 +19,7 @@ demo: $(STAMP)
 
 test: $(STAMP)
 	$(BIN)/python -m ruff check workbench tests benchmarks
-	$(BIN)/python -m pytest -q -n auto --dist loadfile --durations=30
+	$(BIN)/python -m pytest -q -n auto --dist loadfile --no-loadscope-reorder --durations=30
 
 # A PNG per view of the demo's recordings as the web viewer draws them (headless Chromium, Debian's
 # chromium and chromium-driver), and the README's picture of each experiment.

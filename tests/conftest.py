@@ -20,10 +20,14 @@ def rng() -> np.random.Generator:
     return np.random.default_rng(1234)
 
 
-SLOW_FIRST = ("test_browser.py", "test_tutorials.py", "test_bounds.py", "test_notebook.py", "test_omni_cli.py",
-              "test_terrain_measure.py", "test_tune.py", "test_hostile.py")
-"""The files that take minutes, run first: with a file per worker (``-n auto --dist loadfile``) the
-short ones then fill in beside them, instead of one long file running alone at the end."""
+SLOW_FIRST = ("test_tutorials.py", "test_browser.py", "test_sweeps.py", "test_relocation.py", "test_replay.py",
+              "test_bounds.py", "test_live.py", "test_selftune.py", "test_bootstrap.py", "test_terrain_measure.py",
+              "test_long_logs.py", "test_omni_log.py", "test_tune.py", "test_misread_starts.py", "test_omni_cli.py",
+              "test_omni_math.py", "test_notebook.py", "test_hostile.py")
+"""The files that take minutes, longest first (each file's time in a full suite, measured): with a
+file per worker (``-n auto --dist loadfile``, and ``--no-loadscope-reorder``, without which xdist
+orders the files by their count of tests instead) the short ones then fill in beside them, instead
+of one long file running alone at the end."""
 
 
 def pytest_collection_modifyitems(session, config, items):
