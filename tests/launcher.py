@@ -24,8 +24,7 @@ def cli(*args: str) -> subprocess.CompletedProcess:
     captured as text. For every test of what a command does: a fresh interpreter adds 2 s of
     imports a call (the suite ran about 190 of them). :func:`wb` stays where the process itself is
     the test: signals and kills, the environment (another processor's kernels), a scratch copy of
-    the package, a command that may hang, and the tutorials and the browser's recordings, made as
-    a user makes them."""
+    the package, a command that may hang, and a tutorial's lines that need the shell."""
     from typer.testing import CliRunner
 
     from workbench.cli import run_cli

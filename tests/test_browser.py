@@ -11,7 +11,7 @@ import os
 
 import numpy as np
 import pytest
-from launcher import wb
+from launcher import cli
 
 from workbench.recording import draw, layout
 from workbench.tools import browser
@@ -35,7 +35,7 @@ def shots(tmp_path_factory):
     with browser.Browser() as b:
         for name, args in CASES.items():
             path = d / f"{name}.rrd"
-            r = wb(name, *args, "--out", str(path))
+            r = cli(name, *args, "--out", str(path))
             assert r.returncode == 0, r.stderr
             (_, rbl), *_ = browser.tab_blueprints(path, d)
             img = b.shoot(path, rbl)

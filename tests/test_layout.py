@@ -8,7 +8,7 @@ import itertools
 import numpy as np
 import pytest
 import rerun.blueprint as rrb
-from launcher import wb
+from launcher import cli
 
 from workbench.core import estimator as plugins
 from workbench.core import registry as experiments
@@ -103,7 +103,7 @@ def recorded(tmp_path_factory):
     out = {}
     for name, args in CASES.items():
         path = d / f"{name}.rrd"
-        r = wb(name, *args, "--out", str(path))
+        r = cli(name, *args, "--out", str(path))
         assert r.returncode == 0, r.stderr
         out[name] = path
     return out

@@ -7,6 +7,7 @@ import sys
 
 import numpy as np
 import pytest
+from launcher import cli
 
 from workbench.experiments.sea import evaluate, run
 from workbench.experiments.sea.config import SeaConfig
@@ -194,9 +195,8 @@ def test_estimators_coast_through_unseen_steps_anywhere(paper_run):
 
 def test_cli_from_images(tmp_path):
     out, m = tmp_path / "img.rrd", tmp_path / "m.json"
-    r = subprocess.run([sys.executable, "-m", "workbench", "sea", "--from-images", "--duration", "10",
-                        "--image-size", "480x270", "--bad-frames", "4", "--runs", "2", "--out", str(out),
-                        "--metrics", str(m)], capture_output=True, text=True, timeout=300)
+    r = cli("sea", "--from-images", "--duration", "10", "--image-size", "480x270", "--bad-frames", "4", "--runs", "2",
+            "--out", str(out), "--metrics", str(m))
     assert r.returncode == 0, r.stderr
     stats = json.loads(m.read_text())
     im = stats["images"]

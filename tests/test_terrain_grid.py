@@ -1,10 +1,9 @@
 """The paper's grid: the statistics on a hand-made case, and the sweep preset through the launcher."""
 
 import csv
-import subprocess
-import sys
 
 import numpy as np
+from launcher import cli
 
 from workbench.experiments.terrain import grid
 
@@ -23,9 +22,9 @@ def test_paper_grid_preset_writes_table_csv_and_plots(tmp_path):
     """``workbench sweep terrain --preset paper-grid`` at one size and one run: the 27 error cells
     as tidy rows and, from them, the paper's Fig. 3 report."""
     out = tmp_path / "grid"
-    cmd = [sys.executable, "-m", "workbench", "sweep", "terrain", "--preset", "paper-grid", "--grid", "size=100x100",
+    cmd = ["sweep", "terrain", "--preset", "paper-grid", "--grid", "size=100x100",
            "--runs", "1", "--set", "node_step=2", "--set", "mode=ii-only", "--out", str(out)]
-    r = subprocess.run(cmd, capture_output=True, text=True, timeout=600)
+    r = cli(*cmd)
     assert r.returncode == 0, r.stderr
     with open(out / "grid.csv") as f:
         rows = list(csv.DictReader(f))
@@ -40,5 +39,5 @@ def test_paper_grid_preset_writes_table_csv_and_plots(tmp_path):
                  "summary.md", "dr_fraction_vs_max_linear.png"):
         assert (out / name).stat().st_size > 1000, name
     assert "mode `ii-only`" in (out / "grid.md").read_text()
-    again = subprocess.run(cmd, capture_output=True, text=True, timeout=600)
+    again = cli(*cmd)
     assert again.returncode == 2 and "--resume" in again.stderr
