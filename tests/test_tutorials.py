@@ -38,8 +38,8 @@ def _package_state() -> str:
 
 TUTORIALS = sorted((Path(__file__).resolve().parents[1] / "docs" / "tutorials").glob("*.md"))
 BLOCK = re.compile(r"```(sh real-data|sh|(?:python|toml) file=\S+|python run)\n(.*?)```", flags=re.S)
-PLAIN = re.compile(r"workbench [^|&;<>$`\\]*")
-"""A ``workbench`` command with nothing for the shell to do but split its words."""
+PLAIN = re.compile(r"workbench [^|&;<>$`\\*?~]*")
+"""A ``workbench`` command with nothing for the shell to do but split its words (no glob, no ``~``)."""
 
 
 def _line(line: str, folder: Path, env: dict) -> subprocess.CompletedProcess:
