@@ -12,6 +12,7 @@ interpreter adds 2 s of imports a line, and the console script itself is run by 
 by the tests whose subject is the process. Every other line runs in the shell, as typed.
 """
 
+import contextlib
 import hashlib
 import os
 import re
@@ -46,12 +47,8 @@ def _line(line: str, folder: Path, env: dict) -> subprocess.CompletedProcess:
     """One ``sh`` line in ``folder``: a plain ``workbench`` command in this process, else the shell."""
     if not PLAIN.fullmatch(line):
         return subprocess.run(line, shell=True, cwd=folder, env=env, capture_output=True, text=True, timeout=900)
-    here = Path.cwd()
-    os.chdir(folder)
-    try:
+    with contextlib.chdir(folder):
         return cli(*shlex.split(line)[1:])
-    finally:
-        os.chdir(here)
 
 
 @pytest.mark.parametrize("path", TUTORIALS, ids=lambda p: p.stem)
