@@ -304,6 +304,7 @@ class Experiment:
     def metric_units(self, cfg: Any = None) -> dict[str, str]:
         return {m.name: m.unit for m in self.metrics(cfg)}
 
+    @on_one_blas_thread  # (the diagnosis' small fits: with a BLAS thread per core, 1.9 of a MRCLAM robot's 11.5 s)
     def statistics(self, cfg: Any, summaries: list[RunSummary], label: str = "") -> dict:
         """The metrics JSON: the outer keys every experiment shares (``experiment``, ``scenario``,
         ``seed``, ``runs``, ``label``, ``config``), every metric's figures over the runs per
