@@ -15,7 +15,7 @@ import warnings
 from pathlib import Path
 
 import pytest
-from launcher import ctrl_c_as_a_terminal, wb
+from launcher import cli, ctrl_c_as_a_terminal
 
 from workbench.recording import readback
 
@@ -84,7 +84,7 @@ def test_run_0_is_live_before_the_other_runs_end(tmp_path, viewer):
     url, live = viewer
     (tmp_path / "gate.py").write_text(GATE)
     go = tmp_path / "go"
-    args = ["sea", "--runs", "4", "--duration", "20", "--estimators", f"+{tmp_path / 'gate.py'}:gate", "--jobs", "1"]
+    args = ["sea", "--runs", "3", "--duration", "10", "--estimators", f"+{tmp_path / 'gate.py'}:gate", "--jobs", "1"]
     env = dict(os.environ, WORKBENCH_TEST_GO=str(go))
     proc = subprocess.Popen([sys.executable, "-m", "workbench", *args, "--connect", url, "--out",
                              str(tmp_path / "live-run.rrd")], env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
@@ -100,8 +100,8 @@ def test_run_0_is_live_before_the_other_runs_end(tmp_path, viewer):
         out, err = proc.communicate(timeout=300)
     assert proc.returncode == 0, err
     assert _wait(lambda: {"/monte_carlo/position_rmse/ekf", "/summary"} <= _received(live))
-    # the saved recording is the one a run without a viewer writes
-    r = wb(*args, "--out", str(tmp_path / "quiet.rrd"))
+    # the saved recording is the one a run without a viewer writes (that run in this process)
+    r = cli(*args, "--out", str(tmp_path / "quiet.rrd"))
     assert r.returncode == 0, r.stderr
     loud, quiet = readback.row_counts(tmp_path / "live-run.rrd"), readback.row_counts(tmp_path / "quiet.rrd")
     assert loud == quiet and len(quiet) > 50
@@ -233,7 +233,7 @@ def test_a_viewer_that_hangs_up_or_never_answers_costs_one_warning(tmp_path, bad
     (its exit hook flushes without a time limit): now the last flush waits LIVE_FLUSH (10 s)."""
     out = tmp_path / "h.rrd"
     t0 = time.monotonic()
-    r = subprocess.run([sys.executable, "-m", "workbench", "sea", "--runs", "3", "--duration", "20", "--connect",
+    r = subprocess.run([sys.executable, "-m", "workbench", "sea", "--runs", "3", "--duration", "10", "--connect",
                         bad_viewer, "--out", str(out)], capture_output=True, text=True, timeout=120)
     took = time.monotonic() - t0
     assert r.returncode == 0, r.stderr
@@ -256,7 +256,7 @@ def test_a_viewer_killed_mid_run_costs_one_warning(tmp_path):
         (tmp_path / "gate.py").write_text(GATE)
         go = tmp_path / "go"
         out = tmp_path / "k.rrd"
-        proc = subprocess.Popen([sys.executable, "-m", "workbench", "sea", "--runs", "3", "--duration", "20",
+        proc = subprocess.Popen([sys.executable, "-m", "workbench", "sea", "--runs", "3", "--duration", "10",
                                  "--jobs", "1", "--estimators", f"+{tmp_path / 'gate.py'}:gate", "--connect",
                                  f"rerun+http://127.0.0.1:{port}/proxy", "--out", str(out)],
                                 env=dict(os.environ, WORKBENCH_TEST_GO=str(go)), stdout=subprocess.PIPE,

@@ -101,7 +101,7 @@ def test_isam2_s_passes_at_run_aways_cost_at_most_a_budget_of_whole_solves(monke
 
     data, cfg, kf = _mrclam(1)
     seconds: dict[str, list[float]] = {"plain": [], "run-away": []}
-    for _ in range(3):  # interleaved, best of three, this process's CPU time: the machine's load is not counted
+    for _ in range(2):  # interleaved, best of two, this process's CPU time: the machine's load is not counted
         for name, jump in (("plain", (incremental.JUMP_POSITION, incremental.JUMP_HEADING)),
                            ("run-away", (1e-3, math.radians(0.01)))):
             with monkeypatch.context() as m:
@@ -111,8 +111,8 @@ def test_isam2_s_passes_at_run_aways_cost_at_most_a_budget_of_whole_solves(monke
                 graph.isam2(data, cfg, kf)
                 seconds[name].append(time.process_time() - t0)
     # an iSAM2 that runs away at every update costs at most a small multiple of one that does not
-    # (0.7x here, as it gives up; 11x before the budget): a ratio in one process, not seconds, which a
-    # loaded CI machine stretches (4.06 s against a bound of 4 there)
+    # (0.5-0.7x here, as it gives up, each pair alike under a load of 14 on 2 cores; 11x before the budget): a
+    # ratio in one process, not seconds, which a loaded CI machine stretches (4.06 s against a bound of 4 there)
     ratio = min(seconds["run-away"]) / min(seconds["plain"])
     assert ratio < 3.0, (seconds, ratio)
     monkeypatch.setattr(incremental, "JUMP_POSITION", 1e-3)

@@ -18,14 +18,16 @@ from workbench.recording import blueprints, readback
 ALL = "odometry,ekf-paper,ekf,isam2,gtsam-batch"
 
 
-def _export(tmp_path, scenario: str, **settings):
+def _export(tmp_path, scenario: str, estimators: str = ALL, **settings):
+    """Run 0 of ``scenario`` written out as a log; ``estimators`` only where their estimates are read (the
+    log is the data alone: the same whichever run)."""
     folder = tmp_path / scenario
-    res = workbench.run("omni", scenario=scenario, runs=1, estimators=ALL, export_data=folder, **settings)
+    res = workbench.run("omni", scenario=scenario, runs=1, estimators=estimators, export_data=folder, **settings)
     return res, folder
 
 
 def test_a_log_runs_from_the_command_line_on_its_own_defaults(tmp_path):
-    _, folder = _export(tmp_path, "paper", duration=40.0)
+    _, folder = _export(tmp_path, "paper", estimators="odometry", duration=40.0)
     out, m = tmp_path / "log.rrd", tmp_path / "log.json"
     r = cli("omni", "--scenario", "log", "--data", str(folder), "--out", str(out), "--metrics", str(m))
     assert r.returncode == 0, r.stderr
@@ -35,24 +37,45 @@ def test_a_log_runs_from_the_command_line_on_its_own_defaults(tmp_path):
     assert out.stat().st_size > 0
 
 
-def _read_back(res, folder, **overrides):
+def _read_back(res, folder, estimators: str = ALL, **overrides):
     """The log read with the very estimator settings the original scenario had."""
     cfg = dataclasses.replace(res.config, scenario="log", data=folder, **overrides)
-    return workbench.run("omni", config=cfg, estimators=ALL)
+    return workbench.run("omni", config=cfg, estimators=estimators)
+
+
+PAPER_60 = {"duration": 60.0}
+
+
+@pytest.fixture(scope="module")
+def paper_60(tmp_path_factory):
+    """The paper's run 0 for 60 s with every estimator, exported, and read back (the same estimates):
+    built once for the tests that read it (none changes it)."""
+    res, folder = _export(tmp_path_factory.mktemp("paper_60"), "paper", **PAPER_60)
+    return res, folder, _read_back(res, folder)
+
+
+@pytest.fixture(scope="module")
+def paper_120(tmp_path_factory):
+    """The paper's run 0 for 120 s exported (its data alone) and read back with every estimator."""
+    res, folder = _export(tmp_path_factory.mktemp("paper_120"), "paper", estimators="odometry", duration=120.0)
+    return res, folder, _read_back(res, folder)
 
 
 @pytest.mark.parametrize("scenario,settings", [
-    ("paper", {"duration": 60.0}),
+    ("paper", PAPER_60),
     ("images", {"duration": 40.0, "from_images": True}),
     ("mrclam", {"robot": 2, "end_time": 150.0}),
 ])
-def test_an_exported_run_reads_back_to_the_same_estimates(tmp_path, scenario, settings):
+def test_an_exported_run_reads_back_to_the_same_estimates(tmp_path, request, scenario, settings):
     if scenario == "mrclam" and not (DATA / "mrclam6").is_dir():
         pytest.skip(f"no MRCLAM data at {DATA}")
-    res, folder = _export(tmp_path, "paper" if scenario == "images" else scenario, **settings)
+    if scenario == "paper":   # the module's own (its config has from_images False already)
+        res, folder, back = request.getfixturevalue("paper_60")
+    else:
+        res, folder = _export(tmp_path, "paper" if scenario == "images" else scenario, **settings)
+        back = _read_back(res, folder, from_images=False)
     files = {p.name for p in folder.iterdir()}
     assert {"manifest.json", "odometry.csv", "bearings.csv", "truth.csv", "landmarks.csv"} <= files
-    back = _read_back(res, folder, from_images=False)
     a, b = res.data, back.data
     assert np.array_equal(a.t, b.t) and np.array_equal(a.controls, b.controls)
     assert np.array_equal(a.meas_step, b.meas_step) and np.array_equal(a.meas_bearing, b.meas_bearing)
@@ -65,8 +88,8 @@ def test_an_exported_run_reads_back_to_the_same_estimates(tmp_path, scenario, se
         assert back.metrics["estimators"][name]["position_rmse"] == pytest.approx(e["position_rmse"], rel=1e-9)
 
 
-def test_without_truth_with_a_sparse_one_and_without_landmark_ids(tmp_path):
-    res, folder = _export(tmp_path, "paper", duration=60.0)
+def test_without_truth_with_a_sparse_one_and_without_landmark_ids(tmp_path, paper_60):
+    res, folder, _ = paper_60
     bare = tmp_path / "bare"
     shutil.copytree(folder, bare)
     (bare / "truth.csv").unlink()
@@ -148,7 +171,7 @@ BAD = [  # (file, how to break it, what the one line must say)
 
 
 def test_malformed_logs_are_one_line_and_exit_2(tmp_path):
-    _, folder = _export(tmp_path, "paper", duration=20.0)
+    _, folder = _export(tmp_path, "paper", estimators="odometry", duration=20.0)
     assert len(BAD) == 20
     bad_logs_say_one_line("omni", folder, tmp_path, BAD)
 
@@ -167,15 +190,14 @@ def _as_increments(d):
     return dataclasses.replace(d, controls=inc, control_var=cov, motion=Motion("increments", 0.0, (0.0,) * 3))
 
 
-def test_odometry_as_relative_pose_increments_gives_the_same_estimates(tmp_path):
+def test_odometry_as_relative_pose_increments_gives_the_same_estimates(tmp_path, paper_60):
     """The graph-SLAM convention (g2o's EDGE_SE2): the same run's odometry written as relative poses
     with their covariances is the same motion, so every estimator lands where it did from the
     paper's bicycle controls (to rounding; iSAM2's relinearisation thresholds amplify it). The
     paper's own EKF is left out: it diverges on this run, and a divergence amplifies anything."""
     from workbench.experiments.omni.readers import log
 
-    res, folder = _export(tmp_path, "paper", duration=60.0)
-    back = _read_back(res, folder)
+    res, folder, back = paper_60
     inc = tmp_path / "increments"
     log.write(_as_increments(back.data), inc)
     meta = json.loads((inc / "manifest.json").read_text())
@@ -194,7 +216,7 @@ def test_odometry_as_relative_pose_increments_gives_the_same_estimates(tmp_path)
     (bare / "odometry.csv").write_text("\n".join(",".join(r) for r in rows) + "\n")
     (bare / "manifest.json").write_text(json.dumps(meta | {"sigma_dx_m": 0.02, "sigma_dy_m": 0.01,
                                                           "sigma_dphi_rad": 0.002}))
-    d = _read_back(res, bare).data
+    d = _read_back(res, bare, estimators="odometry").data   # the log as read: no estimate of it is looked at
     assert d.control_var is None and d.motion.sigma_u == (0.02, 0.01, 0.002)
     bad_logs_say_one_line("omni", inc, tmp_path / "bad", [
         ("odometry.csv", lambda t: edit_line(t, 3, lambda f: [*f[:4], "-1.0", *f[5:]]),
@@ -208,14 +230,13 @@ def test_odometry_as_relative_pose_increments_gives_the_same_estimates(tmp_path)
     ])
 
 
-def test_a_noisy_position_fix_is_scored_with_its_noise(tmp_path):
+def test_a_noisy_position_fix_is_scored_with_its_noise(tmp_path, paper_120):
     """A GPS-like track (a position every 5 s, 0.5 m noise per axis, ``sigma_m``): the errors at
     those times only, and the position NEES against the fix with its noise added to the estimate's
     covariance (chi-square 2 for a consistent estimator); the paper's EKF is caught by it too."""
     from workbench.experiments.omni.readers import log
 
-    res, folder = _export(tmp_path, "paper", duration=120.0)
-    back = _read_back(res, folder)
+    res, _, back = paper_120
     d = back.data
     every, sigma = np.arange(0, len(d.t), 50), 0.5
     truth, ts = np.full_like(d.truth, np.nan), np.full(len(d.t), np.nan)
@@ -237,15 +258,15 @@ def test_a_noisy_position_fix_is_scored_with_its_noise(tmp_path):
     assert back.metrics["estimators"]["ekf"].get("fix_nees") is None  # an exact pose: the pose NEES holds
 
 
-def test_each_bearing_weighed_by_its_own_sigma(tmp_path):
+def test_each_bearing_weighed_by_its_own_sigma(tmp_path, paper_120):
     """A log whose bearings carry their own sigma (``sigma_rad``; here 30 % of them five times as
     noisy, drawn so): every estimator weighs each by it. Against the same log read with one sigma
     (their RMS) the filter and the smoothers land closer, and the measurements are likelier under
     the filter (its NLL, truth-free, says which model of the noise the data prefer)."""
     from workbench.experiments.omni.readers import log
 
-    res, folder = _export(tmp_path, "paper", duration=120.0)
-    d = _read_back(res, folder).data
+    res, _, back = paper_120
+    d = back.data
     rng = np.random.default_rng(3)
     sigma = np.where(rng.random(len(d.meas_bearing)) < 0.3, 5.0, 1.0) * d.sigma_bearing
     pose, mark = d.truth[d.meas_step], d.landmarks[d.meas_lm]

@@ -453,11 +453,11 @@ def test_compose_cov_is_the_first_order_composition():
     cov, rel_cov = np.diag([0.01, 0.02, 0.003]), np.diag([0.002, 0.001, 0.004])
     rel = gtsam.Pose2(1.5, -0.5, 0.3)
     base = np.array([0.5, -1.0, 0.7])
+    starts = base + rng.multivariate_normal(np.zeros(3), cov, 20000)   # drawn at once: one SVD, not 40,000
+    moves = rng.multivariate_normal(np.zeros(3), rel_cov, 20000)
     samples = []
-    for _ in range(20000):
-        a = base + rng.multivariate_normal(np.zeros(3), cov)
-        b = rel.retract(rng.multivariate_normal(np.zeros(3), rel_cov))
-        c = gtsam.Pose2(*a).compose(b)
+    for a, m in zip(starts, moves, strict=True):
+        c = gtsam.Pose2(*a).compose(rel.retract(m))
         samples.append([c.x(), c.y(), c.theta()])
     assert np.allclose(np.cov(np.array(samples).T), graph.compose_cov(base, cov, rel, rel_cov), atol=2e-3)
 

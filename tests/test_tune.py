@@ -17,7 +17,7 @@ from launcher import cli
 
 from workbench.tuning import files as studies
 
-SMALL = ("--set", "duration=20", "--set", "assume-sigma-acc=1.0", "--runs", "2", "--estimator", "ekf")
+SMALL = ("--set", "duration=10", "--set", "assume-sigma-acc=1.0", "--runs", "2", "--estimator", "ekf")
 
 
 def trials_of(folder) -> list[tuple]:
@@ -44,7 +44,7 @@ def test_a_study_writes_its_report_and_best_toml_runs(tmp_path):
         assert nll["p.assume_sigma_acc"].iloc[0] == params["assume_sigma_acc"]
     best = min(got, key=lambda t: t[3])
     toml = tomllib.loads((out / "best.toml").read_text())
-    assert toml["assume_sigma_acc"] == best[2]["assume_sigma_acc"] and toml["duration"] == 20.0
+    assert toml["assume_sigma_acc"] == best[2]["assume_sigma_acc"] and toml["duration"] == 10.0
     assert f"**Best: trial {best[0]}" in (out / "summary.md").read_text()
     assert {"objective.png", "param-assume_sigma_acc.png", "study.rrd"} <= {p.name for p in out.iterdir()}
     from workbench.recording import readback  # the study's recording reads back: the objective on a trial timeline
@@ -123,7 +123,7 @@ def test_a_resume_with_another_space_or_an_objective_needing_truth_touches_nothi
     assert {p: p.stat().st_mtime_ns for p in out.rglob("*")} == listing
     # a log without truth: the NEES needs the truth
     log = tmp_path / "log"
-    assert cli("sea", "--duration", "20", "--export-data", str(log), "--out", str(tmp_path / "x.rrd")).returncode == 0
+    assert cli("sea", "--duration", "10", "--export-data", str(log), "--out", str(tmp_path / "x.rrd")).returncode == 0
     (log / "truth.csv").unlink()
     r = cli("tune", "sea", "--scenario", "log", "--set", f"data={log}", "--param", "sigma-acc=0.01:1:log",
            "--objective", "nees", "--trials", "2", "--out", str(tmp_path / "t2"))
