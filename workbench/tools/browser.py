@@ -120,7 +120,8 @@ class Browser:
               settle: int = 2, every: float = 3.0) -> np.ndarray:
         """Open ``recording`` (with ``blueprint`` beside it) in the viewer; once the picture has
         stopped changing for ``settle`` looks ``every`` seconds apart, return it (RGB, H x W x 3).
-        A viewer that has not settled within ``timeout`` s is an error."""
+        A viewer that has not settled within ``timeout`` s is an error, and so is its own loading
+        error (:meth:`failed`)."""
         import cv2
 
         urls = []
@@ -132,6 +133,9 @@ class Browser:
         t0, last, same = time.monotonic(), None, 0
         while True:
             time.sleep(every)
+            failed = self.failed()
+            if failed:
+                raise WorkbenchError(f"the viewer could not draw {Path(recording).name}: {failed}")
             png = self.driver.get_screenshot_as_png()
             img = cv2.cvtColor(cv2.imdecode(np.frombuffer(png, np.uint8), cv2.IMREAD_COLOR), cv2.COLOR_BGR2RGB)
             if last is not None and img.shape == last.shape and np.array_equal(img, last) and drawn(img):
@@ -143,6 +147,17 @@ class Browser:
             last = img
             if time.monotonic() - t0 > timeout:
                 raise WorkbenchError(f"the viewer did not settle on {Path(recording).name} within {timeout:.0f} s")
+
+    def failed(self) -> str | None:
+        """The viewer's own loading error, where it gave up and wrote one into the page (HTML beside
+        its canvas, e.g. "failed to create wgpu surface" where the renderer cannot start); else
+        ``None``. Its text is many-coloured enough for :func:`drawn`, so the page is read."""
+        text = self.driver.execute_script("return document.body ? document.body.innerText : ''") or ""
+        lines = [x.strip() for x in text.splitlines() if x.strip()]
+        for i, line in enumerate(lines):
+            if line.startswith("An error occurred during loading"):
+                return lines[i + 1] if i + 1 < len(lines) else line
+        return None
 
 
 def drawn(img: np.ndarray) -> bool:
