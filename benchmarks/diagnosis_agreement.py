@@ -49,18 +49,21 @@ FAULTS = {"paper, as simulated": "consistent", "synthetic log, as it is": "consi
 """The verdict each cell's fault calls for (the paper's EKF, inconsistent on every cell, aside)."""
 
 
-def _cells(runs_omni: int, runs_sea: int, folder: Path, resamples: int = 0, logs: int = 1
-           ) -> list[tuple[str, str, dict]]:
+def _cells(runs_omni: int, runs_sea: int, folder: Path, resamples: int = 0, logs: int = 1,
+           nees_runs: int = 0) -> list[tuple[str, str, dict]]:
     """(experiment, cell, api.run arguments): a synthetic log's cell once per log (``logs`` drives,
     seeds 0 up), pooled by :func:`_pooled`. With ``resamples`` B, each cell's NEES verdict also
     counts B - 1 times its runs more (other seeds, or other logs), run without the bootstrap
     (``truth_only``): the NEES verdict then rests on as many runs as the bootstrap's band counts
     resamples, and the two tests have the same power. (Measured on the paper's simulation: each
     run's NEES is heavy-tailed, 1.4-14.6 over 48 fresh simulations of one path, mean 4.8 against
-    3; 8 runs' band of 1.6-4.9 calls that consistent half the time, 24 resamples' 2.1-4.1 rarely.)"""
+    3; 8 runs' band of 1.6-4.9 calls that consistent half the time, 24 resamples' 2.1-4.1 rarely.)
+    Each simulated cell draws its own seeds (:func:`_twins`); with ``nees_runs`` its NEES verdict
+    also counts more truth-only runs, up to that many in all."""
     omni = api.get("omni").configure("paper")
     sea = api.get("sea").configure("paper")
-    out = []
+    out: list[tuple[str, str, dict]] = []
+    simulated: list[str] = []
     for what, fields in (("odometry", {"assume_sigma_v": omni.sigma_v, "assume_sigma_gamma_deg": omni.sigma_gamma_deg}),
                          ("bearings", {"assume_sigma_bearing_deg": omni.sigma_bearing_deg})):
         for k in (0.3, 1.0, 3.0):
@@ -68,7 +71,8 @@ def _cells(runs_omni: int, runs_sea: int, folder: Path, resamples: int = 0, logs
                 continue
             out += _twins("omni", f"paper, {what} x{k:g}" if k != 1.0 else "paper, as simulated",
                           {"scenario": "paper", "runs": runs_omni, "bootstrap": resamples,
-                           **{f: v * k for f, v in fields.items()}}, resamples)
+                           **{f: v * k for f, v in fields.items()}}, resamples, len(simulated), nees_runs)
+            simulated.append(out[-1][1])
     faults_of = {"as it is": faults.Faults(), "5 % bearings misread": faults.Faults(misread=0.05),
             "odometry stated 10x too small": faults.Faults(odometry_stated=0.1)}
     here = Path(__file__).resolve()
@@ -89,17 +93,26 @@ def _cells(runs_omni: int, runs_sea: int, folder: Path, resamples: int = 0, logs
                 continue
             out += _twins("sea", f"paper, {what} x{k:g}" if k != 1.0 else "paper, as simulated",
                           {"scenario": "paper", "runs": runs_sea, "bootstrap": resamples,
-                           **{f: v * k for f, v in fields.items()}}, resamples)
+                           **{f: v * k for f, v in fields.items()}}, resamples, len(simulated), nees_runs)
+            simulated.append(out[-1][1])
     return out
 
 
-def _twins(experiment: str, cell: str, kw: dict, resamples: int) -> list[tuple[str, str, dict]]:
-    """A simulated cell, and where it bootstraps, its truth-only twin: ``B - 1`` times its runs on
-    other seeds without the bootstrap (:func:`_cells`)."""
-    out = [(experiment, cell, kw)]
+def _twins(experiment: str, cell: str, kw: dict, resamples: int, index: int, nees_runs: int = 0
+           ) -> list[tuple[str, str, dict]]:
+    """A simulated cell on its own seeds (``100 * (index + 1)`` up: cells that shared theirs were
+    nearly one draw of a heavy-tailed NEES, not several), and where it bootstraps its truth-only
+    twin: ``B - 1`` times its runs on other seeds without the bootstrap (``equal``, the NEES
+    verdict as powerful as the bootstrap's), then as many more as bring the NEES to ``nees_runs``
+    runs (``more``: a verdict nearer the NEES's own expectation) (:func:`_cells`)."""
+    seed = 100 * (index + 1)
+    out = [(experiment, cell, {**kw, "seed": seed})]
+    truth = {**kw, "bootstrap": 0, "truth_only": True}
     if resamples > 1:
-        out.append((experiment, cell, {**kw, "runs": kw["runs"] * (resamples - 1), "bootstrap": 0,
-                                       "seed": 1000, "truth_only": True}))
+        out.append((experiment, cell, {**truth, "runs": kw["runs"] * (resamples - 1), "seed": seed + 1}))
+    more = nees_runs - kw["runs"] * max(resamples, 1)
+    if more > 0:
+        out.append((experiment, cell, {**truth, "runs": more, "seed": seed + 2, "truth_only": "more"}))
     return out
 
 
@@ -134,25 +147,30 @@ def _efficiency(e: dict) -> float | None:
     return None
 
 
-def _pooled(entries: list[dict], runs: list[int], extra: list[tuple[float | None, int]], dof: int,
+def _pooled(entries: list[dict], runs: list[int], extra: list[tuple[float | None, int, bool]], dof: int,
             resamples: int) -> dict:
     """One estimator's figures in one cell: ``entries`` its metrics where the diagnosis ran (each
-    over ``runs`` runs: a simulated cell's runs, or one log each), ``extra`` its ANEES and runs on
-    the truth-only twins (:func:`_cells`). The NEES verdict: the mean ANEES over every run against
-    the band for that many (Bar-Shalom 5.4.2); the bootstrap's: the mean of its resamples against
-    the band for runs x resamples; without the bootstrap, the noise's verdict where most logs give
-    it."""
+    over ``runs`` runs: a simulated cell's runs, or one log each), ``extra`` its ANEES, runs and
+    whether they are the ``more`` runs on the truth-only twins (:func:`_cells`). The NEES verdict:
+    the mean ANEES over every run against the band for that many (Bar-Shalom 5.4.2), and
+    ``nees_equal`` over the runs as many as the bootstrap's resamples alone; the bootstrap's: the
+    mean of its resamples against the band for runs x resamples; without the bootstrap, the
+    noise's verdict where most logs give it."""
     from workbench.estimation.metrics import chi2_band
 
-    out: dict = {"diagnoses": [e["diagnosis"] for e in entries]}
-    pairs = [(e.get("anees"), n) for e, n in zip(entries, runs, strict=True)] + list(extra)
-    if any(a is None for a, _ in pairs):
-        out.update(nees=None, anees=None)
-    else:
+    def verdict(pairs: list[tuple[float | None, int]]) -> tuple[float | None, bool | None, int]:
         total = sum(n for _, n in pairs)
-        out["anees"] = float(sum(a * n for a, n in pairs) / total)
+        if any(a is None for a, _ in pairs):
+            return None, None, total
+        anees = float(sum(a * n for a, n in pairs) / total)
         lo, hi = chi2_band(dof, total)
-        out["nees"], out["nees_runs"] = bool(lo <= out["anees"] <= hi), total
+        return anees, bool(lo <= anees <= hi), total
+
+    out: dict = {"diagnoses": [e["diagnosis"] for e in entries]}
+    own = [(e.get("anees"), n) for e, n in zip(entries, runs, strict=True)]
+    out["anees"], out["nees"], out["nees_runs"] = verdict(own + [(a, n) for a, n, _ in extra])
+    out["anees_equal"], out["nees_equal"], out["nees_equal_runs"] = verdict(
+        own + [(a, n) for a, n, more in extra if not more])
     effs = [x for x in (_efficiency(e) for e in entries) if x is not None]
     out["eff"] = max(effs) if effs else None
     boot = [e["diagnosis"].get("bootstrap_nees") for e in entries]
@@ -176,15 +194,19 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--bootstrap", type=int, default=0,
                     help="resamples per run from each omni run's own answer: the truth-free NEES decides consistency")
     ap.add_argument("--out", type=Path, default=None, help="also write the table here (markdown)")
+    ap.add_argument("--nees-runs", type=int, default=0,
+                    help="the truth's NEES verdict of a simulated cell over this many runs (more truth-only runs)")
     ap.add_argument("--only", choices=("omni", "sea"), default=None, help="the one experiment's cells alone")
     ap.add_argument("--cell", default=None, help="the cells whose name holds this text alone")
     args = ap.parse_args(argv)
     rows, agree, total, fooled, faults_named, faults_total = [], 0, 0, [], 0, 0
     t0 = time.perf_counter()
     cells: dict[tuple[str, str], dict[str, list[dict]]] = {}
-    extra: dict[tuple[str, str], dict[str, list[tuple[float | None, int]]]] = {}
+    extra: dict[tuple[str, str], dict[str, list[tuple[float | None, int, bool]]]] = {}
+    equal_agree, equal_total = 0, 0
     with tempfile.TemporaryDirectory() as tmp:
-        for experiment, cell, kw in _cells(args.runs_omni, args.runs_sea, Path(tmp), args.bootstrap, args.logs):
+        for experiment, cell, kw in _cells(args.runs_omni, args.runs_sea, Path(tmp), args.bootstrap, args.logs,
+                                          args.nees_runs):
             if args.only not in (None, experiment) or (args.cell is not None and args.cell not in cell):
                 continue
             scenario, truth_only = kw.pop("scenario"), kw.pop("truth_only", False)
@@ -192,7 +214,8 @@ def main(argv: list[str] | None = None) -> int:
             for name, e in result.metrics["estimators"].items():
                 e["_runs"] = kw.get("runs", 1)
                 if truth_only:
-                    extra.setdefault((experiment, cell), {}).setdefault(name, []).append((e.get("anees"), e["_runs"]))
+                    extra.setdefault((experiment, cell), {}).setdefault(name, []).append(
+                        (e.get("anees"), e["_runs"], truth_only == "more"))
                     continue
                 d = e.get("diagnosis")
                 if d is not None and d["verdict"] != "not enough data":
@@ -208,6 +231,9 @@ def main(argv: list[str] | None = None) -> int:
             if nees is not None:
                 total += 1
                 agree += said == nees
+            if p["nees_equal"] is not None:
+                equal_total += 1
+                equal_agree += said == p["nees_equal"]
             if said and eff is not None and eff > 5.0:
                 fooled.append(f"{experiment} {cell} {name}")
             fault = FAULTS.get(cell)
@@ -222,7 +248,10 @@ def main(argv: list[str] | None = None) -> int:
                          f"{len(verdicts)} logs: {counts}"
                          + ("" if p.get("bootstrap_nees") is None else f"; bootstrap NEES {p['bootstrap_nees']:.3g}"))
             rows.append((experiment, cell, name, said_line,
-                         "-" if nees is None else ("consistent" if nees else "not consistent") + f" ({p['nees_runs']})",
+                         "-" if nees is None else ("consistent" if nees else "not consistent") + f" ({p['nees_runs']})"
+                         + ("" if p["nees_equal_runs"] == p["nees_runs"] or p["nees_equal"] is None else
+                            f"; over {p['nees_equal_runs']}: {p['anees_equal']:.3g} "
+                            + ("in" if p["nees_equal"] else "out")),
                          p["anees"], eff, "-" if nees is None else "yes" if said == nees else "**no**",
                          "-" if fault is None or name == "ekf-paper" else
                          f"{sum(d['verdict'] == fault for d in p['diagnoses'])} of {len(verdicts)}"))
@@ -235,6 +264,7 @@ def main(argv: list[str] | None = None) -> int:
                   f"the cell's own fault named: {faults_named} of {faults_total} "
                   f"({100 * faults_named / max(faults_total, 1):.0f} %); called consistent with the error over 5x its "
                   f"bound: {len(fooled)}" + (f" ({', '.join(fooled)})" if fooled else ""),
+              f"with the NEES over as many runs as the bootstrap's resamples alone: {equal_agree} of {equal_total}",
               f"({time.perf_counter() - t0:.0f} s)"]
     text = "\n".join(lines)
     print(text)
