@@ -63,7 +63,7 @@ def _cells(runs_omni: int, runs_sea: int, folder: Path, resamples: int = 0, logs
     omni = api.get("omni").configure("paper")
     sea = api.get("sea").configure("paper")
     out: list[tuple[str, str, dict]] = []
-    simulated: list[str] = []
+    simulated = 0  # the simulated cells so far: each one's index, for its own seeds
     for what, fields in (("odometry", {"assume_sigma_v": omni.sigma_v, "assume_sigma_gamma_deg": omni.sigma_gamma_deg}),
                          ("bearings", {"assume_sigma_bearing_deg": omni.sigma_bearing_deg})):
         for k in (0.3, 1.0, 3.0):
@@ -71,8 +71,8 @@ def _cells(runs_omni: int, runs_sea: int, folder: Path, resamples: int = 0, logs
                 continue
             out += _twins("omni", f"paper, {what} x{k:g}" if k != 1.0 else "paper, as simulated",
                           {"scenario": "paper", "runs": runs_omni, "bootstrap": resamples,
-                           **{f: v * k for f, v in fields.items()}}, resamples, len(simulated), nees_runs)
-            simulated.append(out[-1][1])
+                           **{f: v * k for f, v in fields.items()}}, resamples, simulated, nees_runs)
+            simulated += 1
     faults_of = {"as it is": faults.Faults(), "5 % bearings misread": faults.Faults(misread=0.05),
             "odometry stated 10x too small": faults.Faults(odometry_stated=0.1)}
     here = Path(__file__).resolve()
@@ -93,8 +93,8 @@ def _cells(runs_omni: int, runs_sea: int, folder: Path, resamples: int = 0, logs
                 continue
             out += _twins("sea", f"paper, {what} x{k:g}" if k != 1.0 else "paper, as simulated",
                           {"scenario": "paper", "runs": runs_sea, "bootstrap": resamples,
-                           **{f: v * k for f, v in fields.items()}}, resamples, len(simulated), nees_runs)
-            simulated.append(out[-1][1])
+                           **{f: v * k for f, v in fields.items()}}, resamples, simulated, nees_runs)
+            simulated += 1
     return out
 
 
